@@ -1,0 +1,5 @@
+import sys
+
+from femgran.cli import main
+
+sys.exit(main())

@@ -1,0 +1,17 @@
+"""Gauss-point material laws for granular materials: the microplane CPA model and reference laws.
+
+Public names (API.md): ``CPAModel``, ``CPAParameters``, ``load_preset``, ``load_parameters``,
+``LinearElastic``, ``VonMises``, and the modules ``planes``, ``anisotropy``, ``failure``, ``driver``.
+"""
+
+from material.parameters import CPAParameters, load_parameters, load_preset, save_parameters
+from material import anisotropy, base
+
+__all__ = [
+    "CPAParameters",
+    "load_parameters",
+    "load_preset",
+    "save_parameters",
+    "anisotropy",
+    "base",
+]
