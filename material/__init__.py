@@ -6,6 +6,7 @@ Public names (API.md): ``CPAModel``, ``CPAParameters``, ``load_preset``, ``load_
 
 from material.parameters import CPAParameters, load_parameters, load_preset, save_parameters
 from material import anisotropy, base
+from material.elastic import LinearElastic
 
 __all__ = [
     "CPAParameters",
@@ -14,4 +15,5 @@ __all__ = [
     "save_parameters",
     "anisotropy",
     "base",
+    "LinearElastic",
 ]
