@@ -1,0 +1,629 @@
+"""Numba kernels of the microplane CPA law: implicit stress update and consistent tangent.
+
+Pure functions over arrays (STYLE.md): no Python objects, no I/O. :mod:`material.cpa` validates the
+input, prepares the plane data and calls :func:`cpa_batch`.
+
+Notation inside the kernel (MODEL.md, "Integration at a Gauss point")
+-----------------------------------------------------------------------
+Symmetric tensors are Mandel 6-vectors ``v = (a11, a22, a33, r a23, r a13, r a12)``, ``r = sqrt(2)``,
+so that ``a : b = v_a . v_b`` and a symmetric 4th-order map is a 6x6 matrix. Stress is tension
+positive; on a plane with unit normal ``n`` the normal traction is compression positive,
+``sigma_N = -n.sigma.n``.
+
+Unknown: the stress ``sigma`` at the end of the (sub)step. Residual (strain units)::
+
+    R(sigma) = S : (sigma - sigma_n) + d_eps_p(sigma) - d_eps = 0
+    d_eps_p  = (1/t) sum_a w_a sym(dg_a (x) n_a)                           (2.9)
+    dg_a     = dkappa_a [ s_a - (eta_c,a - tau_a / (sigma_N,a + sigma0_a)) n_a ]   (2.7, 2.17)
+    dkappa_a = max(0, A etah_a / (zeta eta_f,a - etah_a) - kappa_n,a)       (2.16 inverted)
+    etah_a   = (tau_a - c_a) / sigma_N,a                                    (mobilised ratio)
+
+``S`` the elastic compliance (isotropic Hooke, 2.11-2.15 normalised to it), ``w_a`` the plane weights
+(sum 1, +-n folded), ``t`` the band thickness. Newton on R with the analytic Jacobian J = dR/dsigma and
+a backtracking line search that keeps every plane strictly inside its barrier ``etah_a < zeta eta_f,a``
+(kappa -> inf there); the consistent tangent is dsigma/d(d_eps) = J^-1 (I - dR/d eps |_sigma), the
+second term from the strain dependence of eta_f through the induced tensor Lambda = beta dev(eps)
+(3.14-3.15). When a step does not converge it is split into 2, 4, ... equal sub-steps; the tangent
+is then carried through the sub-steps by the chain rule (sensitivities of sigma and of every kappa_a
+with respect to the total increment), so it stays consistent with the algorithm actually used.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+SQ2 = np.sqrt(2.0)
+ISQ2 = 1.0 / np.sqrt(2.0)
+
+# status codes (material.base)
+_OK = 0
+_SUBSTEPPED = 1
+_FAILED = 2
+
+# integer options, packed in one array: see cpa_batch
+_I_MAXIT = 0
+_I_MAX_LEVEL = 1
+_I_TANGENT = 2
+# float options
+_F_TOL = 0
+_F_BARRIER = 1
+_F_CUTOFF_STIFFNESS = 2
+
+
+@njit(cache=True, inline="always")
+def _traction(sig, n0, n1, n2):
+    """t = sigma n for a Mandel stress vector."""
+    s11, s22, s33 = sig[0], sig[1], sig[2]
+    s23, s13, s12 = sig[3] * ISQ2, sig[4] * ISQ2, sig[5] * ISQ2
+    return (s11 * n0 + s12 * n1 + s13 * n2, s12 * n0 + s22 * n1 + s23 * n2, s13 * n0 + s23 * n1 + s33 * n2)
+
+
+@njit(cache=True, inline="always")
+def _sym_mandel(out, a0, a1, a2, n0, n1, n2):
+    """out = Mandel(sym(a (x) n))."""
+    out[0] = a0 * n0
+    out[1] = a1 * n1
+    out[2] = a2 * n2
+    out[3] = (a1 * n2 + a2 * n1) * ISQ2
+    out[4] = (a0 * n2 + a2 * n0) * ISQ2
+    out[5] = (a0 * n1 + a1 * n0) * ISQ2
+
+
+@njit(cache=True)
+def _series_and_slope(x, coeffs):
+    """1 + x + a1 x^2 + a2 x^3 + ... and its derivative in x (eq. 2.4)."""
+    val = 1.0 + x
+    der = 1.0
+    xp = x  # x^(k+1) for coefficient a_k
+    for k in range(coeffs.shape[0]):
+        der += (k + 2) * coeffs[k] * xp
+        xp *= x
+        val += coeffs[k] * xp
+    return val, der
+
+
+@njit(cache=True)
+def _plane_strengths(eps6, normals6, om6, coeffs, eta0, beta, eta_f, deta_f):
+    """eta_f,a and d eta_f,a / d x_a for the total strain eps6 (eqs. 2.4, 3.14, 3.15).
+
+    x_a = n_a.(Omega + beta dev(eps)).n_a; dev is taken on eps6 here.
+    """
+    tr3 = (eps6[0] + eps6[1] + eps6[2]) / 3.0
+    for a in range(normals6.shape[0]):
+        x = 0.0
+        for i in range(6):
+            e = eps6[i] - tr3 if i < 3 else eps6[i]
+            x += normals6[a, i] * (om6[i] + beta * e)
+        val, der = _series_and_slope(x, coeffs)
+        eta_f[a] = eta0 * val
+        deta_f[a] = eta0 * der
+
+
+@njit(cache=True)
+def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
+              comp, barrier, want_jac, r, J, active, dkap, work):
+    """Residual R (and Jacobian J) at sig; returns (feasible, |R|).
+
+    ``work`` (M, 8) receives per plane: sigma_N, tau, etah, q = tau/(sigma_N+sigma0), dil, kappa',
+    and the slip direction is recomputed where needed. ``active[a]`` is set for loading planes.
+    """
+    M = normals.shape[0]
+    # elastic part
+    for i in range(6):
+        acc = -de[i]
+        for j in range(6):
+            acc += comp[i, j] * (sig[j] - sig_n[j])
+        r[i] = acc
+    if want_jac:
+        for i in range(6):
+            for j in range(6):
+                J[i, j] = comp[i, j]
+    smax = 0.0
+    for i in range(6):
+        smax = max(smax, abs(sig[i]))
+    tau_tiny = 1e-13 * (smax + 1e-300)
+    sn6 = np.empty(6)
+    mn6 = np.empty(6)
+    for a in range(M):
+        n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+        t0, t1, t2 = _traction(sig, n0, n1, n2)
+        tn = t0 * n0 + t1 * n1 + t2 * n2
+        sigma_N = -tn  # compression positive
+        ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
+        tau = np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2)
+        c = cohesion[a]
+        ef = eta_f[a]
+        zef = zeta * ef
+        active[a] = False
+        dkap[a] = 0.0
+        if sigma_N <= 0.0:
+            # tension side: the model admits no normal tension with shear above the cohesion
+            if tau > c + tau_tiny:
+                return False, np.inf
+            continue
+        etah = (tau - c) / sigma_N
+        if etah >= zef * (1.0 - barrier):
+            return False, np.inf
+        kn = kap_n[a]
+        eta_n = zef * kn / (A + kn)  # hardening level reached so far (2.16)
+        if tau <= tau_tiny or etah < eta_n:
+            continue
+        kap = A * etah / (zef - etah)
+        dk = kap - kn
+        if dk < 0.0:
+            dk = 0.0
+        active[a] = True
+        dkap[a] = dk
+        s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
+        sig0 = c / ef
+        q = tau / (sigma_N + sig0)
+        dil = eta_c_ratio * ef - q  # d psi / d sigma_N (2.17): > 0 compaction, < 0 dilation
+        kprime = A * zef / ((zef - etah) * (zef - etah))
+        work[a, 0] = sigma_N
+        work[a, 1] = tau
+        work[a, 2] = etah
+        work[a, 3] = q
+        work[a, 4] = dil
+        work[a, 5] = kprime
+        wt = weights[a] * inv_t
+        # sym(dg (x) n) with dg = dk (s - dil n)                                  (2.7, 2.9)
+        _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
+        for i in range(6):
+            r[i] += wt * dk * (sn6[i] - dil * nn6[a, i])
+        if want_jac:
+            m0 = n1 * s2 - n2 * s1
+            m1 = n2 * s0 - n0 * s2
+            m2 = n0 * s1 - n1 * s0
+            _sym_mandel(mn6, m0, m1, m2, n0, n1, n2)
+            inv_sn = 1.0 / sigma_N
+            inv_sq = 1.0 / (sigma_N + sig0)
+            for i in range(6):
+                gi = wt * (sn6[i] - dil * nn6[a, i]) * kprime * inv_sn
+                hi = wt * dk * nn6[a, i] * inv_sq
+                mi = wt * dk * mn6[i] / tau
+                for j in range(6):
+                    J[i, j] += (gi * (sn6[j] + etah * nn6[a, j])
+                                + hi * (sn6[j] + q * nn6[a, j])
+                                + mi * mn6[j])
+    rn = 0.0
+    for i in range(6):
+        rn += r[i] * r[i]
+    return True, np.sqrt(rn)
+
+
+@njit(cache=True)
+def _lu_factor(A, piv):
+    """In-place LU with partial pivoting of a small square matrix; returns False if singular."""
+    n = A.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0 or not np.isfinite(big):
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            A[i, k] *= inv
+            f = A[i, k]
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+    return True
+
+
+@njit(cache=True)
+def _lu_solve(LU, piv, b):
+    """Solve in place for one right-hand side b (6,)."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= LU[i, j] * b[j]
+        b[i] = acc / LU[i, i]
+
+
+@njit(cache=True)
+def _is_strictly_compressive(sig, normals):
+    smax = 0.0
+    for i in range(6):
+        smax = max(smax, abs(sig[i]))
+    if smax == 0.0:
+        return False
+    for a in range(normals.shape[0]):
+        n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+        t0, t1, t2 = _traction(sig, n0, n1, n2)
+        if -(t0 * n0 + t1 * n1 + t2 * n2) <= 1e-10 * smax:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial):
+    """Newton with line search for one (sub)step; sig receives the solution. Returns (ok, iterations).
+
+    On return with ok, J holds the LU factors of the Jacobian at the solution and active/dkap/work
+    describe the loading planes there.
+    """
+    M = normals.shape[0]
+    # elastic predictor
+    for i in range(6):
+        acc = sig_n[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        trial[i] = acc
+    feas, rn = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
+                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+    if feas:
+        any_active = False
+        for a in range(M):
+            if active[a]:
+                any_active = True
+                break
+        if not any_active:
+            for i in range(6):
+                sig[i] = trial[i]
+            ok = _lu_factor(J, piv)
+            return ok, 0
+    # plastic: start from the converged stress of the previous step (feasible by construction), or from
+    # the isotropic part of the trial stress when that one sits on the apex (all-zero or tensile planes)
+    if _is_strictly_compressive(sig_n, normals):
+        for i in range(6):
+            sig[i] = sig_n[i]
+    else:
+        p = (trial[0] + trial[1] + trial[2]) / 3.0
+        if p >= 0.0:
+            return False, 0
+        for i in range(6):
+            sig[i] = p if i < 3 else 0.0
+    de_norm = 0.0
+    for i in range(6):
+        de_norm += de[i] * de[i]
+    de_norm = np.sqrt(de_norm)
+    feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
+                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+    if not feas:
+        return False, 0
+    for it in range(1, maxit + 1):
+        if not _lu_factor(J, piv):
+            return False, it
+        for i in range(6):
+            delta[i] = -r[i]
+        _lu_solve(J, piv, delta)
+        # backtracking line search on |R|, keeping every plane inside its barrier
+        alpha = 1.0
+        accepted = False
+        for _ls in range(40):
+            for i in range(6):
+                trial[i] = sig[i] + alpha * delta[i]
+            feas, rn_new = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A,
+                                     inv_t, eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+            if feas and rn_new <= (1.0 - 1e-4 * alpha) * rn:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            return False, it
+        for i in range(6):
+            sig[i] = trial[i]
+        rn = rn_new
+        if rn <= tol * (de_norm + 1e-300) or rn <= 1e-15:
+            ok = _lu_factor(J, piv)
+            return ok, it
+    return False, maxit
+
+
+@njit(cache=True)
+def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A,
+                  inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
+                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new):
+    """One Gauss point: adaptive sub-stepping around :func:`_solve_substep`, chain-rule tangent.
+
+    Returns (status, substeps, iterations, cutoff).
+    """
+    M = normals.shape[0]
+    maxit = iopt[_I_MAXIT]
+    max_level = iopt[_I_MAX_LEVEL]
+    want_tangent = iopt[_I_TANGENT] != 0
+    tol = fopt[_F_TOL]
+    barrier = fopt[_F_BARRIER]
+    eta_f = bufs_f[0, :M]
+    deta_f = bufs_f[1, :M]
+    dkap = bufs_f[2, :M]
+    kap = bufs_f[3, :M]
+    work = bufs_f[4:12, :M].T  # (M, 8) view
+    active = bufs_b[:M]
+    sig = np.empty(6)
+    sig_prev = np.empty(6)
+    de_k = np.empty(6)
+    eps_k = np.empty(6)
+    r = np.empty(6)
+    delta = np.empty(6)
+    trial = np.empty(6)
+    J = np.empty((6, 6))
+    B = np.empty((6, 6))
+    Dsig = np.empty((6, 6))
+    col = np.empty(6)
+    sn6 = np.empty(6)
+    dev_nn = np.empty(6)
+    total_it = 0
+    for level in range(max_level + 1):
+        m = 1 << level
+        for i in range(6):
+            sig_prev[i] = sig_n[i]
+            de_k[i] = de[i] / m
+        for a in range(M):
+            kap[a] = kap_n[a]
+        if want_tangent:
+            for i in range(6):
+                for j in range(6):
+                    Dsig[i, j] = 0.0
+            for a in range(M):
+                for j in range(6):
+                    Dk[a, j] = 0.0
+        failed = False
+        for k in range(1, m + 1):
+            frac = k / m
+            for i in range(6):
+                eps_k[i] = eps_n[i] + frac * de[i]
+            _plane_strengths(eps_k, nn6, om6, coeffs, eta0, beta, eta_f, deta_f)
+            ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
+                                     eta_c_ratio, comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work,
+                                     r, piv, delta, trial)
+            total_it += its
+            if not ok:
+                failed = True
+                break
+            if want_tangent:
+                # B = S Dsig_{k-1} + I/m + sum_active (w/t)(SN - dil NN) (x) Dkap_{k-1,a}
+                #     - sum_active dG_a/d eta_f * d eta_f/d eps * frac
+                for i in range(6):
+                    for j in range(6):
+                        acc = 0.0
+                        for l in range(6):
+                            acc += comp[i, l] * Dsig[l, j]
+                        B[i, j] = acc + (1.0 / m if i == j else 0.0)
+                for a in range(M):
+                    if not active[a]:
+                        continue
+                    n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+                    t0, t1, t2 = _traction(sig, n0, n1, n2)
+                    tn = t0 * n0 + t1 * n1 + t2 * n2
+                    tau = work[a, 1]
+                    s0, s1, s2 = (t0 - tn * n0) / tau, (t1 - tn * n1) / tau, (t2 - tn * n2) / tau
+                    _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
+                    wt = weights[a] * inv_t
+                    dil = work[a, 4]
+                    for i in range(6):
+                        g = wt * (sn6[i] - dil * nn6[a, i])
+                        for j in range(6):
+                            B[i, j] += g * Dk[a, j]
+                    if beta != 0.0:
+                        sigma_N = work[a, 0]
+                        etah = work[a, 2]
+                        q = work[a, 3]
+                        ef = eta_f[a]
+                        zef = zeta * ef
+                        c = cohesion[a]
+                        sig0 = c / ef
+                        dkap_def = -A * etah * zeta / ((zef - etah) * (zef - etah))  # d kappa / d eta_f
+                        ddil_def = eta_c_ratio - tau * c / (ef * ef * (sigma_N + sig0) * (sigma_N + sig0))
+                        for i in range(3):
+                            dev_nn[i] = nn6[a, i] - 1.0 / 3.0
+                        for i in range(3, 6):
+                            dev_nn[i] = nn6[a, i]
+                        scale = deta_f[a] * beta * frac
+                        for i in range(6):
+                            dGi = wt * ((sn6[i] - dil * nn6[a, i]) * dkap_def - dkap[a] * ddil_def * nn6[a, i])
+                            for j in range(6):
+                                B[i, j] -= dGi * scale * dev_nn[j]
+                # Dsig_k = J^-1 B
+                for j in range(6):
+                    for i in range(6):
+                        col[i] = B[i, j]
+                    _lu_solve(J, piv, col)
+                    for i in range(6):
+                        Dsig[i, j] = col[i]
+                # Dkap_k = kappa' d etah/d sigma . Dsig_k + d kappa/d eta_f d eta_f/d eps frac  (active)
+                for a in range(M):
+                    if not active[a]:
+                        for j in range(6):
+                            Dk_new[a, j] = Dk[a, j]
+                        continue
+                    n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+                    t0, t1, t2 = _traction(sig, n0, n1, n2)
+                    tn = t0 * n0 + t1 * n1 + t2 * n2
+                    tau = work[a, 1]
+                    s0, s1, s2 = (t0 - tn * n0) / tau, (t1 - tn * n1) / tau, (t2 - tn * n2) / tau
+                    _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
+                    sigma_N = work[a, 0]
+                    etah = work[a, 2]
+                    kprime = work[a, 5]
+                    for j in range(6):
+                        acc = 0.0
+                        for i in range(6):
+                            acc += (sn6[i] + etah * nn6[a, i]) * Dsig[i, j]
+                        Dk_new[a, j] = kprime * acc / sigma_N
+                    if beta != 0.0:
+                        ef = eta_f[a]
+                        zef = zeta * ef
+                        dkap_def = -A * etah * zeta / ((zef - etah) * (zef - etah))
+                        scale = dkap_def * deta_f[a] * beta * frac
+                        for i in range(3):
+                            Dk_new[a, i] += scale * (nn6[a, i] - 1.0 / 3.0)
+                        for i in range(3, 6):
+                            Dk_new[a, i] += scale * nn6[a, i]
+                for a in range(M):
+                    for j in range(6):
+                        Dk[a, j] = Dk_new[a, j]
+            for a in range(M):
+                if active[a]:
+                    kap[a] = kap[a] + dkap[a]
+            for i in range(6):
+                sig_prev[i] = sig[i]
+        if not failed:
+            for i in range(6):
+                sig_out[i] = sig_prev[i]
+            for a in range(M):
+                kap_out[a] = kap[a]
+            if want_tangent:
+                for i in range(6):
+                    for j in range(6):
+                        D_out[i, j] = Dsig[i, j]
+            return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
+    # tension cut-off (MODEL.md "Tension"): when the elastic trial stress has no compression left
+    # (mean stress >= 0) no stress state of the cone can follow the increment: the point goes to the
+    # apex (stress free), the whole misfit becomes plastic opening, kappa is unchanged.
+    p_trial = 0.0
+    for i in range(3):
+        acc = sig_n[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        p_trial += acc / 3.0
+    if p_trial >= 0.0:
+        for i in range(6):
+            sig_out[i] = 0.0
+        for a in range(M):
+            kap_out[a] = kap_n[a]
+        if want_tangent:
+            rho = fopt[_F_CUTOFF_STIFFNESS]
+            for i in range(6):
+                for j in range(6):
+                    D_out[i, j] = rho * stiff[i, j]
+        return _OK, 1, total_it, True
+    for i in range(6):
+        sig_out[i] = sig_n[i]
+    for a in range(M):
+        kap_out[a] = kap_n[a]
+    if want_tangent:
+        for i in range(6):
+            for j in range(6):
+                D_out[i, j] = stiff[i, j]
+    return _FAILED, 1 << max_level, total_it, False
+
+
+@njit(cache=True, parallel=True)
+def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A, inv_t,
+              eta_c_ratio, comp, stiff, iopt, fopt, sig_out, kap_out, D_out, status, substeps, iterations, cutoff,
+              mobilised):
+    """Update N Gauss points (Mandel vectors). Arrays:
+
+    sig_n, de, eps_n (N, 6); kap_n (N, M); normals (M, 3) global; nn6 (M, 6) Mandel(n n);
+    weights, cohesion (M,); om6 (6,) Mandel(Omega) global; coeffs (K,) a1..aK;
+    comp, stiff (6, 6) elastic compliance / stiffness (Mandel); iopt = (maxit, max_level, want_tangent);
+    fopt = (tol, barrier, cutoff_stiffness).
+    Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6), status, substeps, iterations (N,) int,
+    cutoff (N,) bool, mobilised (N,) = max_a etah_a / eta_f,a at the end of the step.
+    """
+    N = sig_n.shape[0]
+    M = normals.shape[0]
+    nchunk = min(N, 64)
+    for c in prange(nchunk):
+        bufs_f = np.empty((12, M))
+        bufs_b = np.zeros(M, dtype=np.bool_)
+        piv = np.empty(6, dtype=np.int64)
+        Dk = np.empty((M, 6))
+        Dk_new = np.empty((M, 6))
+        eps_end = np.empty(6)
+        for p in range(c, N, nchunk):
+            st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,
+                                            om6, coeffs, eta0, beta, zeta, A, inv_t, eta_c_ratio, comp, stiff,
+                                            iopt, fopt, sig_out[p], kap_out[p], D_out[p], bufs_f, bufs_b, piv,
+                                            Dk, Dk_new)
+            status[p] = st
+            substeps[p] = m
+            iterations[p] = its
+            cutoff[p] = cut
+            # mobilised ratio at the end of the step (output only)
+            for i in range(6):
+                eps_end[i] = eps_n[p, i] + de[p, i]
+            _plane_strengths(eps_end, nn6, om6, coeffs, eta0, beta, bufs_f[0, :M], bufs_f[1, :M])
+            best = 0.0
+            for a in range(M):
+                n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+                t0, t1, t2 = _traction(sig_out[p], n0, n1, n2)
+                tn = t0 * n0 + t1 * n1 + t2 * n2
+                sN = -tn
+                if sN > 0.0:
+                    ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
+                    tau = np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2)
+                    v = (tau - cohesion[a]) / sN / bufs_f[0, a]
+                    if v > best:
+                        best = v
+            mobilised[p] = best
+
+
+# ---------------------------------------------------------------------------------------- Mandel
+
+
+@njit(cache=True, parallel=True)
+def to_mandel(a):
+    """(N, 3, 3) symmetric -> (N, 6) Mandel (11, 22, 33, r 23, r 13, r 12)."""
+    N = a.shape[0]
+    out = np.empty((N, 6))
+    for p in prange(N):
+        out[p, 0] = a[p, 0, 0]
+        out[p, 1] = a[p, 1, 1]
+        out[p, 2] = a[p, 2, 2]
+        out[p, 3] = 0.5 * (a[p, 1, 2] + a[p, 2, 1]) * SQ2
+        out[p, 4] = 0.5 * (a[p, 0, 2] + a[p, 2, 0]) * SQ2
+        out[p, 5] = 0.5 * (a[p, 0, 1] + a[p, 1, 0]) * SQ2
+    return out
+
+
+@njit(cache=True, parallel=True)
+def from_mandel(v):
+    """(N, 6) Mandel -> (N, 3, 3) symmetric."""
+    N = v.shape[0]
+    out = np.empty((N, 3, 3))
+    for p in prange(N):
+        out[p, 0, 0] = v[p, 0]
+        out[p, 1, 1] = v[p, 1]
+        out[p, 2, 2] = v[p, 2]
+        out[p, 1, 2] = out[p, 2, 1] = v[p, 3] * ISQ2
+        out[p, 0, 2] = out[p, 2, 0] = v[p, 4] * ISQ2
+        out[p, 0, 1] = out[p, 1, 0] = v[p, 5] * ISQ2
+    return out
+
+
+@njit(cache=True, parallel=True)
+def tangent_from_mandel(D):
+    """(N, 6, 6) Mandel tangent -> (N, 3, 3, 3, 3) with both minor symmetries."""
+    N = D.shape[0]
+    out = np.empty((N, 3, 3, 3, 3))
+    idx_i = (0, 1, 2, 1, 0, 0)
+    idx_j = (0, 1, 2, 2, 2, 1)
+    for p in prange(N):
+        for I in range(6):
+            wi = 1.0 if I < 3 else ISQ2
+            i, j = idx_i[I], idx_j[I]
+            for K in range(6):
+                wk = 1.0 if K < 3 else ISQ2
+                k, l = idx_i[K], idx_j[K]
+                v = D[p, I, K] * wi * wk
+                out[p, i, j, k, l] = v
+                out[p, j, i, k, l] = v
+                out[p, i, j, l, k] = v
+                out[p, j, i, l, k] = v
+    return out
