@@ -1,0 +1,894 @@
+"""Single-point (element) tests of any material law: a mixed stress/strain path engine and lab tests.
+
+The engine, :func:`run_path`, works like MFront's MTest: a :class:`LoadPath` is a list of segments,
+each split into load steps; in every step six linear conditions fix the six independent components
+of the symmetric strain increment. Condition k reads
+
+    A_k . eps + B_k . (sigma - u delta) = c_k            (Mandel vectors, tension +)
+
+with ``eps`` the total strain and ``sigma`` the effective stress at the end of the step, ``u`` the pore
+pressure (compression +; only for undrained segments) and ``delta`` = (1, 1, 1, 0, 0, 0). A
+strain-controlled component has A_k = Q_k, B_k = 0, a stress-controlled one A_k = 0, B_k = Q_k, where Q is
+the Mandel rotation to the segment's frame (identity by default): components can be prescribed in a
+rotated frame (principal stress rotation) or as a linear combination (the b value of a true triaxial
+test). The unknown strain increment is found by Newton on these conditions with the law's consistent
+tangent (6x6 Mandel form); the material state is kept at the start of the step and committed on
+convergence. An undrained segment adds the constraint tr(d eps) = 0 per step, whose Lagrange
+multiplier is the excess pore pressure increment (total stress = effective stress - u I, tension +).
+
+A step that fails (law status FAILED, Newton not converged, singular system) is retried in 2, 4, ...
+sub-steps (``max_cuts`` halvings); if it still fails the run stops, and the table of the steps
+computed so far is returned with ``completed = False`` and a message naming the step and the cause
+(``on_failure="raise"`` raises :class:`PathFailure` instead, carrying the partial table).
+
+Mandel basis (the order of :data:`COMPONENTS`): v = (T_xx, T_yy, T_zz, sqrt2 T_yz, sqrt2 T_xz, sqrt2 T_xy).
+Paths and CSV columns use **tensor** components (``eps_xz`` is half the engineering shear strain).
+
+Lab tests built on the engine (all return an :class:`~material.results.ElementResult`):
+:func:`triaxial`, :func:`oedometer`, :func:`direct_shear`, :func:`simple_shear`,
+:func:`cyclic_simple_shear`, :func:`plane_strain`, :func:`true_triaxial`, :func:`rotation`.
+The loading (axial) axis of the triaxial-type tests is the global z axis; the material axes of a CPA
+law built here come from :func:`material.anisotropy.axes_from_alpha` (e2 at alpha from z).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path as _FilePath
+
+import numpy as np
+
+from material.base import STATUS_FAILED, copy_state
+from material.results import COMPONENTS, ElementResult, standard_columns
+
+__all__ = [
+    "COMPONENTS",
+    "LoadPath",
+    "Segment",
+    "PathFailure",
+    "run_path",
+    "triaxial",
+    "oedometer",
+    "direct_shear",
+    "simple_shear",
+    "cyclic_simple_shear",
+    "plane_strain",
+    "true_triaxial",
+    "rotation",
+    "to_mandel",
+    "from_mandel",
+    "tangent_to_mandel",
+    "mandel_rotation",
+]
+
+_IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+_W = np.array([1.0, 1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0), math.sqrt(2.0)])
+_DELTA = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+_I_IDX = np.array([i for i, _ in _IJ])
+_J_IDX = np.array([j for _, j in _IJ])
+
+
+# ---------------------------------------------------------------------------- Mandel algebra
+def to_mandel(t: np.ndarray) -> np.ndarray:
+    """Symmetric (..., 3, 3) tensor -> (..., 6) Mandel vector (shear components times sqrt 2)."""
+    t = np.asarray(t, dtype=float)
+    return t[..., _I_IDX, _J_IDX] * _W
+
+
+def from_mandel(v: np.ndarray) -> np.ndarray:
+    """(..., 6) Mandel vector -> symmetric (..., 3, 3) tensor."""
+    v = np.asarray(v, dtype=float)
+    t = np.zeros(v.shape[:-1] + (3, 3))
+    comp = v / _W
+    for k, (i, j) in enumerate(_IJ):
+        t[..., i, j] = comp[..., k]
+        t[..., j, i] = comp[..., k]
+    return t
+
+
+def tangent_to_mandel(c: np.ndarray) -> np.ndarray:
+    """(..., 3, 3, 3, 3) tangent with minor symmetries -> (..., 6, 6) Mandel matrix (sig_M = D eps_M)."""
+    c = np.asarray(c, dtype=float)
+    d = c[..., _I_IDX[:, None], _J_IDX[:, None], _I_IDX[None, :], _J_IDX[None, :]]
+    return d * np.outer(_W, _W)
+
+
+def mandel_rotation(frame) -> np.ndarray:
+    """6x6 Q with to_mandel(R^T T R) = Q @ to_mandel(T): components of T in the frame R (columns = axes)."""
+    r = np.asarray(frame, dtype=float)
+    if r.shape != (3, 3) or not np.allclose(r.T @ r, np.eye(3), atol=1e-10):
+        raise ValueError(f"frame: expected a (3, 3) orthonormal matrix (columns = axes), got {np.round(r, 6).tolist()}")
+    basis = from_mandel(np.eye(6))  # (6, 3, 3): the Mandel basis tensors
+    return to_mandel(np.einsum("ai,kab,bj->kij", r, basis, r)).T
+
+
+def rotation_about_z(angle_deg: float) -> np.ndarray:
+    """Frame (columns = axes) rotated by ``angle_deg`` about the global z axis (x towards y)."""
+    a = np.deg2rad(float(angle_deg))
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+# ---------------------------------------------------------------------------- load path
+@dataclass(frozen=True)
+class Segment:
+    """One segment of a :class:`LoadPath` (data layout of the engine).
+
+    Attributes
+    ----------
+    steps : int
+        Number of load steps the segment is split into (targets interpolated linearly), >= 1.
+    A, B : (6, 6) ndarray
+        Strain and stress coefficients of the six conditions ``A eps + B (sigma - u delta) = c``
+        (Mandel vectors, tension +). Every row has either A or B non-zero.
+    target : (6,) ndarray
+        End-of-segment value c of each condition (kPa for stress rows, - for strain rows).
+    relative : (6,) bool ndarray
+        Row k's target is a change from the value at the segment start (else absolute).
+    undrained : bool
+        Constant volume, excess pore pressure as Lagrange multiplier (see the module docstring).
+    name : str
+        Stage label recorded in the ``stage`` column (as an index into ``metadata["stages"]``).
+    """
+
+    steps: int
+    A: np.ndarray
+    B: np.ndarray
+    target: np.ndarray
+    relative: np.ndarray
+    undrained: bool = False
+    name: str = ""
+
+    @property
+    def stress_rows(self) -> np.ndarray:
+        """(6,) bool: which conditions are on stress."""
+        return np.abs(self.B).sum(axis=1) > 0
+
+
+@dataclass
+class LoadPath:
+    """A mixed stress/strain-controlled loading path: a list of :class:`Segment`.
+
+    Build it with :meth:`add` (component-wise control in a frame), :meth:`add_conditions` (raw A, B,
+    c rows) or :meth:`from_csv` (lab data), e.g. a drained triaxial compression from -p0 I::
+
+        path = LoadPath(initial_stress=-100.0 * np.eye(3))
+        path.add(steps=300, eps_zz=-0.15, sig_xx=-100.0, sig_yy=-100.0,
+                 sig_yz=0.0, sig_xz=0.0, sig_xy=0.0, relative_strain=True)
+
+    Keyword names are ``sig_<c>`` (stress [kPa], tension +) or ``eps_<c>`` (strain, tension +,
+    tensor shear), ``<c>`` in :data:`COMPONENTS`; each of the six components exactly once.
+
+    Attributes
+    ----------
+    segments : list of Segment
+    initial_stress : (3, 3) ndarray
+        Effective stress at the start of the path [kPa], tension +.
+    """
+
+    initial_stress: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    segments: list = field(default_factory=list)
+
+    def __post_init__(self):
+        s = np.asarray(self.initial_stress, dtype=float)
+        if s.shape != (3, 3) or not np.isfinite(s).all() or not np.allclose(s, s.T):
+            raise ValueError(f"initial_stress: expected a finite symmetric (3, 3) tensor [kPa], got {s.tolist()}")
+        self.initial_stress = s
+
+    @property
+    def n_steps(self) -> int:
+        """Total number of load steps."""
+        return sum(seg.steps for seg in self.segments)
+
+    def add(self, steps: int, *, frame=None, relative_strain: bool = True, relative_stress: bool = False,
+            undrained: bool = False, name: str = "", **components: float) -> "LoadPath":
+        """Append a segment prescribing each component in stress or in strain.
+
+        Parameters
+        ----------
+        steps : int
+            Number of load steps, >= 1.
+        frame : (3, 3) array, optional
+            Frame (columns = axes) in which the components are given; default the global frame.
+        relative_strain : bool
+            Strain targets are changes over the segment (default), else absolute total strains.
+        relative_stress : bool
+            Stress targets are changes over the segment, else absolute values (default).
+        undrained : bool
+            Constant volume; the excess pore pressure is the multiplier (stress targets are total).
+        **components
+            ``sig_xx=...`` [kPa] or ``eps_zz=...`` [-]; all six components, each once.
+        """
+        q = mandel_rotation(np.eye(3) if frame is None else frame)
+        a, b = np.zeros((6, 6)), np.zeros((6, 6))
+        target, rel = np.zeros(6), np.zeros(6, dtype=bool)
+        allowed = [f"{kind}_{c}" for kind in ("sig", "eps") for c in COMPONENTS]
+        for key in components:
+            if key not in allowed:
+                raise KeyError(f"unknown component {key!r}; allowed: {allowed}")
+        for k, c in enumerate(COMPONENTS):
+            has_s, has_e = f"sig_{c}" in components, f"eps_{c}" in components
+            if has_s == has_e:
+                raise ValueError(
+                    f"component {c!r}: prescribe exactly one of sig_{c} or eps_{c} "
+                    f"(got {'both' if has_s else 'neither'})"
+                )
+            value = float(components[f"sig_{c}" if has_s else f"eps_{c}"])
+            if not math.isfinite(value):
+                raise ValueError(f"component {'sig' if has_s else 'eps'}_{c} = {value!r}: must be finite")
+            (b if has_s else a)[k] = q[k]
+            target[k] = value * (_W[k] if k >= 3 else 1.0)  # Mandel value of a tensor component
+            rel[k] = relative_stress if has_s else relative_strain
+        return self.add_conditions(steps, a, b, target, rel, undrained=undrained, name=name)
+
+    def add_conditions(self, steps: int, A, B, target, relative, *, undrained: bool = False,
+                       name: str = "") -> "LoadPath":
+        """Append a segment given its raw conditions (see :class:`Segment`)."""
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+            raise ValueError(f"steps = {steps!r}: must be an integer >= 1")
+        a, b = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+        c = np.asarray(target, dtype=float)
+        rel = np.broadcast_to(np.asarray(relative, dtype=bool), (6,)).copy()
+        if a.shape != (6, 6) or b.shape != (6, 6) or c.shape != (6,):
+            raise ValueError(f"conditions: expected A (6, 6), B (6, 6), target (6,), got {a.shape}, {b.shape}, {c.shape}")
+        if not (np.isfinite(a).all() and np.isfinite(b).all() and np.isfinite(c).all()):
+            raise ValueError("conditions: A, B and target must be finite (NaN or inf found)")
+        both = (np.abs(a).sum(1) > 0) & (np.abs(b).sum(1) > 0)
+        if both.any():
+            raise ValueError(f"conditions: row(s) {np.flatnonzero(both).tolist()} mix strain and stress; use one per row")
+        self.segments.append(Segment(int(steps), a, b, c, rel, bool(undrained), str(name)))
+        return self
+
+    @classmethod
+    def from_csv(cls, path, substeps: int = 1, initial_stress=None) -> "LoadPath":
+        """Read a path from a CSV of lab data (one load step per row after the first).
+
+        Columns: exactly one of ``sig_<c>_kPa`` (stress [kPa], tension +) or ``eps_<c>`` (strain,
+        tension +, tensor shear) per component ``<c>`` in :data:`COMPONENTS`; optional ``step``,
+        ``time_s`` and ``stage`` columns are ignored; lines starting with ``#`` are comments. Values
+        are absolute. The first row is the reference state: strains are measured from it and its stress
+        values are the start of the stress-controlled components. ``initial_stress`` (3, 3) [kPa] sets
+        the whole initial stress; by default it is the first row's stress where given and, for
+        strain-controlled normal components, the mean of the given normal stresses (0 if none).
+        Each later row is reached in ``substeps`` steps.
+        """
+        path = _FilePath(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"path file {str(path)!r} does not exist")
+        lines = [ln.strip() for ln in path.read_text(encoding="utf-8").splitlines()]
+        lines = [ln for ln in lines if ln and not ln.startswith("#")]
+        if len(lines) < 3:
+            raise ValueError(f"{path}: need a header and at least two data rows (start + one step), got {len(lines) - 1} rows")
+        names = [h.strip() for h in lines[0].split(",")]
+        stress_cols = {f"sig_{c}_kPa": k for k, c in enumerate(COMPONENTS)}
+        strain_cols = {f"eps_{c}": k for k, c in enumerate(COMPONENTS)}
+        ignored = {"step", "time_s", "time", "stage"}
+        unknown = [n for n in names if n not in stress_cols and n not in strain_cols and n not in ignored]
+        if unknown:
+            raise KeyError(
+                f"{path}: unknown column(s) {unknown}; allowed: {list(stress_cols) + list(strain_cols)} "
+                f"(+ ignored {sorted(ignored)})"
+            )
+        rows = []
+        for i, ln in enumerate(lines[1:], start=1):
+            cells = ln.split(",")
+            if len(cells) != len(names):
+                raise ValueError(f"{path}: data row {i} has {len(cells)} values, header has {len(names)} columns")
+            try:
+                rows.append([float(x) for x in cells])
+            except ValueError:
+                raise ValueError(f"{path}: data row {i} has a value that is not a number: {ln!r}") from None
+        data = np.array(rows)
+        mode: dict[int, tuple[str, int]] = {}
+        for j, n in enumerate(names):
+            if n in ignored:
+                continue
+            k = stress_cols.get(n, strain_cols.get(n))
+            if k in mode:
+                raise ValueError(f"{path}: component {COMPONENTS[k]!r} is given twice ({names[mode[k][1]]} and {n})")
+            mode[k] = ("sig" if n in stress_cols else "eps", j)
+            bad = ~np.isfinite(data[:, j])
+            if bad.any():
+                raise ValueError(f"{path}: column {n!r} has NaN/inf in data row(s) {(np.flatnonzero(bad) + 1).tolist()}")
+        missing = [COMPONENTS[k] for k in range(6) if k not in mode]
+        if missing:
+            raise ValueError(f"{path}: component(s) {missing} are not prescribed; give sig_<c>_kPa or eps_<c> for each")
+        if initial_stress is None:
+            s0 = np.zeros((3, 3))
+            normal_given = [data[0, mode[k][1]] for k in range(3) if mode[k][0] == "sig"]
+            mean = float(np.mean(normal_given)) if normal_given else 0.0
+            for k, (i, j) in enumerate(_IJ):
+                kind, col = mode[k]
+                s0[i, j] = s0[j, i] = data[0, col] if kind == "sig" else (mean if k < 3 else 0.0)
+        else:
+            s0 = initial_stress
+        out = cls(initial_stress=s0)
+        eye6 = np.eye(6)
+        a, b = np.zeros((6, 6)), np.zeros((6, 6))
+        for k in range(6):
+            (b if mode[k][0] == "sig" else a)[k] = eye6[k]
+        for r in range(1, len(data)):
+            target = np.array([data[r, mode[k][1]] - (data[0, mode[k][1]] if mode[k][0] == "eps" else 0.0)
+                               for k in range(6)]) * _W
+            out.add_conditions(int(substeps), a, b, target, np.zeros(6, dtype=bool), name=f"row {r}")
+        return out
+
+
+# ---------------------------------------------------------------------------- engine
+class PathFailure(RuntimeError):
+    """A load step failed after all cut-backs; ``.result`` holds the table computed so far."""
+
+    def __init__(self, message: str, result: ElementResult):
+        super().__init__(message)
+        self.result = result
+
+
+@dataclass
+class _Point:
+    """Converged state of the single material point (start of the next step)."""
+
+    strain: np.ndarray  # (6,) Mandel, tension +
+    stress: np.ndarray  # (6,) Mandel effective stress, tension +
+    u: float  # excess pore pressure [kPa], compression +
+    state: dict
+    tangent: np.ndarray  # (6, 6) Mandel tangent of the last converged update
+
+
+def _update(model, point: _Point, d_eps: np.ndarray):
+    stress, state, tangent = model.update(from_mandel(d_eps)[None], from_mandel(point.stress)[None], point.state)
+    failed = int(np.asarray(state["status"])[0]) == STATUS_FAILED
+    return to_mandel(stress[0]), state, tangent_to_mandel(np.asarray(tangent)[0]), failed
+
+
+def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int):
+    """Newton for one step from ``point`` to the conditions ``c_end``; returns (_Point, iterations) or a reason."""
+    a, b, undrained = seg.A, seg.B, seg.undrained
+    srows = seg.stress_rows
+    n = 7 if undrained else 6
+    d_eps, d_u = np.zeros(6), 0.0
+    sig, tangent = point.stress, point.tangent
+    state = None
+    for it in range(max_iter + 1):
+        r = a @ (point.strain + d_eps) + b @ (sig - (point.u + d_u) * _DELTA) - c_end
+        scale = max(np.abs(sig).max(), np.abs(c_end[srows]).max(initial=0.0), 1e-3)
+        conv_s = np.abs(r[srows]).max(initial=0.0) <= tol * scale
+        conv_e = np.abs(r[~srows]).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(c_end[~srows]).max(initial=0.0))
+        if it > 0 and conv_s and conv_e:
+            return _Point(point.strain + d_eps, sig, point.u + d_u, state, tangent), it
+        if it == max_iter:
+            return None, f"Newton did not converge in {max_iter} iterations (stress residual {np.abs(r[srows]).max(initial=0.0):.3g} kPa)"
+        jac = np.zeros((n, n))
+        jac[:6, :6] = a + b @ tangent
+        res = np.zeros(n)
+        res[:6] = r
+        if undrained:
+            jac[:6, 6] = -b @ _DELTA
+            jac[6, :6] = _DELTA
+            res[6] = _DELTA @ d_eps
+        try:
+            dx = np.linalg.solve(jac, -res)
+        except np.linalg.LinAlgError:
+            return None, "singular system (the prescribed stresses cannot be reached: limit state?)"
+        if not np.isfinite(dx).all():
+            return None, "non-finite Newton correction"
+        d_eps = d_eps + dx[:6]
+        if undrained:
+            d_u += dx[6]
+        sig, state, tangent, failed = _update(model, point, d_eps)
+        if failed or not np.isfinite(sig).all():
+            return None, "the material returned status FAILED (no converged stress for this increment)"
+    return None, "Newton loop exhausted"  # pragma: no cover
+
+
+def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int = 30, max_cuts: int = 6,
+             on_failure: str = "return", progress: bool = False, state=None) -> ElementResult:
+    """Drive one material point along a mixed stress/strain path (see the module docstring).
+
+    Parameters
+    ----------
+    model : material object
+        Anything with ``initial_state(n, stress=...)`` and ``update(d_strain, stress, state)``.
+    path : LoadPath
+        The loading; its ``initial_stress`` is the starting effective stress (tension +, kPa).
+    tolerance : float
+        Stress conditions hold to ``tolerance * max(|sigma|, |targets|, 1e-3 kPa)``.
+    max_iter : int
+        Newton iterations per step before the step counts as failed.
+    max_cuts : int
+        A failed step is retried in 2**k sub-steps, k = 1..max_cuts.
+    on_failure : {"return", "raise"}
+        After the last cut-back: return the partial table (``completed=False``, with a warning) or
+        raise :class:`PathFailure`.
+    progress : bool
+        Show a tqdm progress bar.
+    state : dict, optional
+        Initial material state (default ``model.initial_state(1, stress=path.initial_stress)``).
+
+    Returns
+    -------
+    ElementResult
+        One row per step (row 0 = start): ``step``, ``stage``, ``iterations``, ``cuts``,
+        ``u_kPa`` and the :func:`~material.results.standard_columns`.
+    """
+    if not isinstance(path, LoadPath):
+        raise ValueError(f"path: expected a LoadPath, got {type(path).__name__}")
+    if not path.segments:
+        raise ValueError("path: has no segments; add some with LoadPath.add(...)")
+    if on_failure not in ("return", "raise"):
+        raise ValueError(f"on_failure = {on_failure!r}; allowed: 'return', 'raise'")
+    if not (0 < tolerance < 1e-2):
+        raise ValueError(f"tolerance = {tolerance!r}: allowed 0 < tolerance < 1e-2")
+    s0 = path.initial_stress
+    state0 = model.initial_state(1, stress=s0) if state is None else copy_state(state)
+    _, state_probe, tangent0 = model.update(np.zeros((1, 3, 3)), s0[None], state0)
+    point = _Point(to_mandel(state0["strain"][0]) if "strain" in state0 else np.zeros(6), to_mandel(s0), 0.0,
+                   state0, tangent_to_mandel(np.asarray(tangent0)[0]))
+    strain_ref = point.strain.copy()
+
+    rows_s, rows_e, rows_u = [point.stress], [point.strain - strain_ref], [0.0]
+    rows_stage, rows_it, rows_cut = [0], [0], [0]
+    stages = [seg.name or f"segment {i}" for i, seg in enumerate(path.segments)]
+    message = ""
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=path.n_steps, desc="element", unit="step", leave=False)
+    step_no = 0
+    try:
+        for iseg, seg in enumerate(path.segments):
+            c_start = seg.A @ point.strain + seg.B @ (point.stress - point.u * _DELTA)
+            c_end = np.where(seg.relative, c_start + seg.target, seg.target)
+            if seg.undrained:
+                # relative strain rows must keep tr(eps) fixed: checked by the solve (singular otherwise)
+                pass
+            for k in range(1, seg.steps + 1):
+                step_no += 1
+                goal = c_start + (c_end - c_start) * (k / seg.steps)
+                new, its, cuts, reason = _step_with_cutbacks(model, point, seg, goal, tolerance, max_iter, max_cuts)
+                if new is None:
+                    message = f"step {step_no} (segment {iseg} '{stages[iseg]}', step {k}/{seg.steps}) failed after {max_cuts} cut-backs: {reason}"
+                    break
+                point = new
+                rows_s.append(point.stress)
+                rows_e.append(point.strain - strain_ref)
+                rows_u.append(point.u)
+                rows_stage.append(iseg)
+                rows_it.append(its)
+                rows_cut.append(cuts)
+                if bar is not None:
+                    bar.update(1)
+            if message:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+
+    stress, strain = from_mandel(np.array(rows_s)), from_mandel(np.array(rows_e))
+    cols = {
+        "step": np.arange(len(rows_s)),
+        "stage": np.array(rows_stage),
+        "iterations": np.array(rows_it),
+        "cuts": np.array(rows_cut),
+        "u_kPa": np.array(rows_u),
+    }
+    desc = {
+        "step": "load step (0 = initial state)",
+        "stage": "index of the path segment (names in metadata['stages'])",
+        "iterations": "Newton iterations of the step (summed over sub-steps)",
+        "cuts": "number of halvings the step needed (0 = none)",
+        "u_kPa": "excess pore pressure [kPa], compression + (0 for drained segments)",
+    }
+    std_cols, std_desc = standard_columns(stress, strain)
+    cols.update(std_cols)
+    desc.update(std_desc)
+    from femgran import __version__
+
+    meta = {"test": "path", "stages": stages, "material": repr(model), "femgran_version": __version__,
+            "strain_origin": "strains measured from the start of the path"}
+    params = getattr(model, "params", None)
+    if params is not None and hasattr(params, "to_dict"):
+        meta["parameters"] = params.to_dict()
+    res = ElementResult(cols, desc, stress, strain, meta, completed=not message, message=message,
+                        final_state=point.state)
+    if message:
+        if on_failure == "raise":
+            raise PathFailure(message, res)
+        warnings.warn(f"element path stopped early: {message}", RuntimeWarning, stacklevel=2)
+    return res
+
+
+def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):
+    """Reach ``goal`` from ``point``; on failure split into 2**k equal sub-steps. -> (point, its, cuts, reason)."""
+    c_start = seg.A @ point.strain + seg.B @ (point.stress - point.u * _DELTA)
+    reason = ""
+    for cuts in range(max_cuts + 1):
+        n_sub = 2**cuts
+        p, total_its = point, 0
+        for j in range(1, n_sub + 1):
+            new, info = _solve_step(model, p, seg, c_start + (goal - c_start) * (j / n_sub), tol, max_iter)
+            if new is None:
+                reason = info
+                break
+            p, total_its = new, total_its + info
+        else:
+            return p, total_its, cuts, ""
+    return None, 0, max_cuts, reason
+
+
+# ---------------------------------------------------------------------------- model construction
+def _make_model(model_or_params, alpha_deg: float, rule: str | None):
+    """A material object from a law, a CPAParameters or a preset name; also returns the parameters (or None)."""
+    from material.parameters import CPAParameters, load_preset
+
+    if isinstance(model_or_params, str):
+        model_or_params = load_preset(model_or_params)
+    if isinstance(model_or_params, CPAParameters):
+        from material.anisotropy import axes_from_alpha
+        from material.cpa import CPAModel  # lazy: the CPA kernel is the heavy import
+
+        kwargs = {} if rule is None else {"rule": rule}
+        return CPAModel(model_or_params, axes=axes_from_alpha(alpha_deg), **kwargs), model_or_params
+    if not (hasattr(model_or_params, "update") and hasattr(model_or_params, "initial_state")):
+        raise ValueError(
+            f"model_or_params: expected a material object (initial_state/update), CPAParameters or a "
+            f"preset name, got {type(model_or_params).__name__}"
+        )
+    if rule is not None:
+        raise ValueError("rule: only used when the model is built from CPAParameters; the given model has its own rule")
+    return model_or_params, getattr(model_or_params, "params", None)
+
+
+def _check_positive(name: str, value: float, allow_zero: bool = False) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name} = {value!r}: must be {'>= 0' if allow_zero else '> 0'} (finite)")
+    return v
+
+
+def _check_steps(steps) -> int:
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"steps = {steps!r}: must be an integer >= 1")
+    return int(steps)
+
+
+def _finish(res: ElementResult, test: str, params, extra_meta: dict, plot_pairs) -> ElementResult:
+    res.metadata["test"] = test
+    res.metadata.update(extra_meta)
+    if params is not None and hasattr(params, "to_dict"):
+        res.metadata["parameters"] = params.to_dict()
+    res.plot_pairs = list(plot_pairs)
+    return res
+
+
+_ZERO_SHEAR = {"sig_yz": 0.0, "sig_xz": 0.0, "sig_xy": 0.0}
+
+
+# ---------------------------------------------------------------------------- lab tests
+def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axial_strain: float = 0.15,
+             steps: int = 300, drained: bool = True, extension: bool = False, *, rule: str | None = None,
+             **engine) -> ElementResult:
+    """Conventional triaxial test: isotropic p0, then axial strain along z at constant cell pressure.
+
+    The point starts at the isotropic effective stress -p0 I (for the CPA law ``initial_state(1,
+    stress=-p0 I)``; strains are zeroed there, like a lab test zeroes them after consolidation).
+    Shearing prescribes eps_zz (compression, or extension if ``extension``) and keeps the lateral
+    normal stresses AND the three shear stresses prescribed (sigma_xx = sigma_yy = -p0 total,
+    shear stresses 0), so an inclined sample (alpha not 0 or 90) may develop shear strains.
+    Undrained (``drained=False``): constant volume; the excess pore pressure u is the multiplier of
+    that constraint, the total lateral stress stays -p0 and the effective stresses are the law's.
+
+    Parameters
+    ----------
+    model_or_params : material object, CPAParameters or preset name
+        A CPAParameters (or preset) builds ``CPAModel(params, axes=axes_from_alpha(alpha_deg))``; a
+        material object is used as given (with its own axes; ``alpha_deg`` is then only recorded).
+    p0_kPa : float
+        Confining (cell) effective pressure [kPa], > 0.
+    alpha_deg : float
+        Deposition angle: between the loading axis z and the material axis e2 [deg].
+    axial_strain : float
+        Magnitude of the axial strain applied [-], > 0.
+    steps : int
+        Number of equal axial strain steps.
+    drained, extension : bool
+    rule : str, optional
+        Integration rule of the CPA law (only with parameters).
+    **engine
+        Passed to :func:`run_path` (tolerance, max_iter, max_cuts, on_failure, progress).
+
+    Returns
+    -------
+    ElementResult
+        Besides the standard columns: ``eps_a`` (axial strain -eps_zz, compression +), ``eps_r``
+        (mean lateral strain, compression +), ``q_kPa`` = sigma_a - sigma_r (axial minus lateral
+        effective stress, compression +; negative in extension: NOT sqrt(3 J2) here), ``eta`` = q/p,
+        ``u_kPa``.
+    """
+    p0 = _check_positive("p0_kPa", p0_kPa)
+    ea = _check_positive("axial_strain", axial_strain)
+    steps = _check_steps(steps)
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-p0 * np.eye(3))
+    sign = 1.0 if extension else -1.0
+    path.add(steps, eps_zz=sign * ea, sig_xx=-p0, sig_yy=-p0, **_ZERO_SHEAR, undrained=not drained,
+             name="extension" if extension else "compression")
+    res = run_path(model, path, **engine)
+    eps = res.strain
+    q = res["sig_xx_kPa"] * 0.5 + res["sig_yy_kPa"] * 0.5 - res["sig_zz_kPa"]
+    res.add_column("eps_a", -eps[:, 2, 2], "axial strain -eps_zz [-], compression +")
+    res.add_column("eps_r", -0.5 * (eps[:, 0, 0] + eps[:, 1, 1]), "mean lateral strain -(eps_xx+eps_yy)/2 [-], compression +")
+    res.add_column("q_kPa", q, "deviator sigma_a - sigma_r (axial minus mean lateral effective stress) [kPa], "
+                   "compression + (sigma1 - sigma3 in compression; negative in extension)")
+    res.add_column("eta", q / res["p_kPa"], "stress ratio q/p [-]")
+    return _finish(res, "triaxial", params,
+                   {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps,
+                    "drained": bool(drained), "extension": bool(extension)},
+                   [("eps_a", "q_kPa"), ("eps_a", "eps_v")] + ([] if drained else [("eps_a", "u_kPa")]))
+
+
+def oedometer(model_or_params, p0_kPa: float = 10.0, alpha_deg: float = 0.0, axial_strain: float = 0.02,
+              steps: int = 100, *, rule: str | None = None, **engine) -> ElementResult:
+    """Oedometric (K0) compression along z: every strain component prescribed (lateral and shear 0).
+
+    Starts at the isotropic effective stress -p0 I. Reports ``eps_a`` (= eps_v), ``K0`` =
+    sigma_xx / sigma_zz (secant, total stresses including the start) and ``K0_incremental`` =
+    (sigma_xx - sigma_xx,0) / (sigma_zz - sigma_zz,0) (the elastic value nu / (1 - nu)); ``K0_y`` for y.
+    """
+    p0 = _check_positive("p0_kPa", p0_kPa)
+    ea = _check_positive("axial_strain", axial_strain)
+    steps = _check_steps(steps)
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-p0 * np.eye(3))
+    path.add(steps, eps_zz=-ea, eps_xx=0.0, eps_yy=0.0, eps_yz=0.0, eps_xz=0.0, eps_xy=0.0, name="oedometer")
+    res = run_path(model, path, **engine)
+    sxx, syy, szz = res["sig_xx_kPa"], res["sig_yy_kPa"], res["sig_zz_kPa"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dk = (sxx - sxx[0]) / (szz - szz[0])
+        dky = (syy - syy[0]) / (szz - szz[0])
+    res.add_column("eps_a", -res.strain[:, 2, 2], "axial strain -eps_zz [-], compression +")
+    res.add_column("sigma_v_kPa", -szz, "vertical effective stress -sigma_zz [kPa], compression +")
+    res.add_column("K0", sxx / szz, "sigma_xx / sigma_zz (secant, from zero stress) [-]")
+    res.add_column("K0_y", syy / szz, "sigma_yy / sigma_zz [-]")
+    res.add_column("K0_incremental", dk, "(sigma_xx - sigma_xx0) / (sigma_zz - sigma_zz0) [-] (NaN at step 0)")
+    res.add_column("K0_y_incremental", dky, "(sigma_yy - sigma_yy0) / (sigma_zz - sigma_zz0) [-]")
+    return _finish(res, "oedometer", params, {"p0_kPa": p0, "alpha_deg": float(alpha_deg),
+                                              "axial_strain": ea, "steps": steps},
+                   [("eps_a", "sigma_v_kPa"), ("sigma_v_kPa", "K0")])
+
+
+def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 0.0, shear_strain: float = 0.2,
+                 steps: int = 300, constant_height: bool = False, k0: float | None = None, *,
+                 lateral: str = "stress", rule: str | None = None, **engine) -> ElementResult:
+    """Simple shear in the x-z plane of a layer with normal z: engineering shear strain gamma = 2 eps_xz.
+
+    Initial effective stress: sigma_zz = -sigma_n and lateral sigma_xx = sigma_yy = -k0 sigma_n
+    (``k0=None``: isotropic, k0 = 1). During shear: eps_xz prescribed (gamma from 0 to
+    ``shear_strain``); the normal stress is held (``constant_height=False``) or the normal strain
+    (``constant_height=True``: eps_zz fixed, the normal stress changes — the constant-volume,
+    "undrained-like" variant of laboratory simple shear); ``lateral="stress"`` holds sigma_xx,
+    sigma_yy at their initial values and sigma_xy = sigma_yz = 0, ``lateral="strain"`` holds
+    eps_xx = eps_yy = eps_xy = eps_yz = 0 (a rigid ring). alpha: angle between the layer normal z and e2.
+
+    Columns: ``gamma`` (2 eps_xz), ``tau_kPa`` = sigma_xz (shear stress on the layer, + with gamma),
+    ``sigma_n_kPa`` = -sigma_zz (compression +), ``tau_over_sigma_n``, ``eps_n`` = eps_zz (dilation +).
+    """
+    sn = _check_positive("sigma_n_kPa", sigma_n_kPa)
+    gamma = float(shear_strain)
+    if not math.isfinite(gamma) or gamma == 0:
+        raise ValueError(f"shear_strain = {shear_strain!r}: must be a finite non-zero engineering shear strain")
+    steps = _check_steps(steps)
+    if lateral not in ("stress", "strain"):
+        raise ValueError(f"lateral = {lateral!r}; allowed: 'stress', 'strain'")
+    kk = 1.0 if k0 is None else _check_positive("k0", k0)
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-sn * np.diag([kk, kk, 1.0]))
+    comps = {"eps_xz": gamma / 2.0}
+    comps.update({"eps_zz": 0.0} if constant_height else {"sig_zz": -sn})
+    if lateral == "stress":
+        comps.update(sig_xx=-kk * sn, sig_yy=-kk * sn, sig_xy=0.0, sig_yz=0.0)
+    else:
+        comps.update(eps_xx=0.0, eps_yy=0.0, eps_xy=0.0, eps_yz=0.0)
+    path.add(steps, name="simple shear", **comps)
+    res = run_path(model, path, **engine)
+    res.add_column("gamma", 2.0 * res.strain[:, 0, 2], "engineering shear strain 2 eps_xz [-]")
+    res.add_column("tau_kPa", res.stress[:, 0, 2], "shear stress sigma_xz on the layer [kPa] (same sign as gamma)")
+    res.add_column("sigma_n_kPa", -res.stress[:, 2, 2], "normal effective stress -sigma_zz [kPa], compression +")
+    res.add_column("tau_over_sigma_n", res["tau_kPa"] / res["sigma_n_kPa"], "mobilised ratio tau / sigma_n [-]")
+    res.add_column("eps_n", res.strain[:, 2, 2], "normal strain eps_zz of the layer [-], dilation +")
+    return _finish(res, "simple_shear", params,
+                   {"sigma_n_kPa": sn, "alpha_deg": float(alpha_deg), "shear_strain": gamma, "steps": steps,
+                    "constant_height": bool(constant_height), "k0": kk, "lateral": lateral},
+                   [("gamma", "tau_kPa"), ("gamma", "eps_n" if not constant_height else "sigma_n_kPa")])
+
+
+def direct_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 0.0,
+                 shear_displacement: float = 0.006, steps: int = 300, *, band_thickness_m: float | None = None,
+                 k0: float | None = None, lateral: str = "stress", rule: str | None = None,
+                 **engine) -> ElementResult:
+    """Direct shear as simple shear of a band of thickness t under constant normal stress.
+
+    gamma = shear_displacement / t with t = params.t for the CPA law (or ``band_thickness_m``,
+    default 0.006 m, for other laws). The band normal is z, the shear direction x; alpha is the angle
+    between the shear-plane normal and e2 (``axes_from_alpha(alpha_deg)``). Initial state and the
+    other stresses as in :func:`simple_shear` (default: isotropic -sigma_n I; lateral normal stresses
+    held at -sigma_n, sigma_xy = sigma_yz = 0).
+
+    Columns (besides those of :func:`simple_shear`): ``shear_displacement_m`` = gamma t,
+    ``normal_displacement_m`` = eps_zz t (dilation +).
+    """
+    d = float(shear_displacement)
+    if not math.isfinite(d) or d == 0:
+        raise ValueError(f"shear_displacement = {shear_displacement!r}: must be a finite non-zero length [m]")
+    from material.parameters import CPAParameters, load_preset
+
+    if isinstance(model_or_params, str):
+        model_or_params = load_preset(model_or_params)
+    if isinstance(model_or_params, CPAParameters):
+        if band_thickness_m is not None and not math.isclose(band_thickness_m, model_or_params.t):
+            raise ValueError(f"band_thickness_m = {band_thickness_m!r}: the CPA band thickness is params.t = "
+                             f"{model_or_params.t}; change it with params.replace(t=...)")
+        t = model_or_params.t
+    else:
+        t = _check_positive("band_thickness_m", 0.006 if band_thickness_m is None else band_thickness_m)
+    res = simple_shear(model_or_params, sigma_n_kPa, alpha_deg, shear_strain=d / t, steps=steps, k0=k0,
+                       lateral=lateral, rule=rule, **engine)
+    res.add_column("shear_displacement_m", res["gamma"] * t, "shear displacement gamma t [m]")
+    res.add_column("normal_displacement_m", res.strain[:, 2, 2] * t, "normal displacement eps_zz t [m], dilation +")
+    res.metadata.update(test="direct_shear", shear_displacement=d, band_thickness_m=t)
+    res.plot_pairs = [("shear_displacement_m", "tau_kPa"), ("shear_displacement_m", "normal_displacement_m")]
+    return res
+
+
+def cyclic_simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 0.0,
+                        gamma_amplitude: float = 0.005, cycles: int = 3, steps_per_quarter: int = 25,
+                        constant_height: bool = False, *, rule: str | None = None, **engine) -> ElementResult:
+    """Strain-controlled cyclic simple shear, gamma: 0 -> +a -> -a -> ... -> 0, ``cycles`` full cycles.
+
+    Same boundary conditions as :func:`simple_shear` (isotropic start, lateral stresses held);
+    ``constant_height=True`` holds eps_zz (the normal stress then evolves, e.g. decreases).
+    """
+    sn = _check_positive("sigma_n_kPa", sigma_n_kPa)
+    amp = _check_positive("gamma_amplitude", gamma_amplitude)
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise ValueError(f"cycles = {cycles!r}: must be an integer >= 1")
+    nq = _check_steps(steps_per_quarter)
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-sn * np.eye(3))
+    base = {"sig_xx": -sn, "sig_yy": -sn, "sig_xy": 0.0, "sig_yz": 0.0}
+    base.update({"eps_zz": 0.0} if constant_height else {"sig_zz": -sn})
+    targets = [amp] + [-amp, amp] * cycles
+    targets[-1] = 0.0
+    for i, g in enumerate(targets):
+        last = targets[i - 1] if i else 0.0
+        path.add(nq * max(1, int(round(abs(g - last) / amp))), eps_xz=g / 2.0, relative_strain=False,
+                 name=f"to gamma={g:g}", **base)
+    res = run_path(model, path, **engine)
+    res.add_column("gamma", 2.0 * res.strain[:, 0, 2], "engineering shear strain 2 eps_xz [-]")
+    res.add_column("tau_kPa", res.stress[:, 0, 2], "shear stress sigma_xz [kPa]")
+    res.add_column("sigma_n_kPa", -res.stress[:, 2, 2], "normal effective stress -sigma_zz [kPa], compression +")
+    res.add_column("eps_n", res.strain[:, 2, 2], "normal strain eps_zz [-], dilation +")
+    return _finish(res, "cyclic_simple_shear", params,
+                   {"sigma_n_kPa": sn, "alpha_deg": float(alpha_deg), "gamma_amplitude": amp, "cycles": int(cycles),
+                    "constant_height": bool(constant_height)},
+                   [("gamma", "tau_kPa"), ("gamma", "eps_n" if not constant_height else "sigma_n_kPa")])
+
+
+def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axial_strain: float = 0.1,
+                 steps: int = 300, *, rule: str | None = None, **engine) -> ElementResult:
+    """Plane-strain (biaxial) compression: axial strain along z, sigma3 = sigma_xx = -p0 held, eps_yy = 0.
+
+    Shear stresses are held at zero. Columns: ``eps_a`` (-eps_zz), ``q13_kPa`` = sigma_a - sigma_xx
+    (compression +), ``q_kPa`` = sqrt(3 J2), ``sigma2_kPa`` = -sigma_yy (the out-of-plane stress),
+    ``b`` = (sigma2 - sigma3)/(sigma1 - sigma3) on the principal values.
+    """
+    p0 = _check_positive("p0_kPa", p0_kPa)
+    ea = _check_positive("axial_strain", axial_strain)
+    steps = _check_steps(steps)
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-p0 * np.eye(3))
+    path.add(steps, eps_zz=-ea, sig_xx=-p0, eps_yy=0.0, **_ZERO_SHEAR, name="plane strain")
+    res = run_path(model, path, **engine)
+    res.add_column("eps_a", -res.strain[:, 2, 2], "axial strain -eps_zz [-], compression +")
+    res.add_column("q13_kPa", res["sig_xx_kPa"] - res["sig_zz_kPa"], "sigma_zz - sigma_xx deviator, compression + [kPa]")
+    res.add_column("sigma2_kPa", -res["sig_yy_kPa"], "out-of-plane effective stress -sigma_yy [kPa], compression +")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        b = (res["sig2_kPa"] - res["sig3_kPa"]) / (res["sig1_kPa"] - res["sig3_kPa"])
+    res.add_column("b", b, "(sigma2 - sigma3)/(sigma1 - sigma3) [-] (NaN at isotropic states)")
+    return _finish(res, "plane_strain", params,
+                   {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps},
+                   [("eps_a", "q13_kPa"), ("eps_a", "eps_v")])
+
+
+def true_triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, b: float = 0.5,
+                  axial_strain: float = 0.1, steps: int = 300, *, rule: str | None = None, **engine) -> ElementResult:
+    """True triaxial compression at constant b = (sigma2 - sigma3) / (sigma1 - sigma3).
+
+    sigma1 on z (eps_zz prescribed, compression), sigma3 = sigma_xx = -p0 held, and sigma2 on y tied to
+    them by the linear condition sigma_yy - b sigma_zz - (1 - b) sigma_xx = 0 (all tension +); shear
+    stresses 0. b = 0 is triaxial compression, b = 1 triaxial extension (in stress space).
+    """
+    p0 = _check_positive("p0_kPa", p0_kPa)
+    ea = _check_positive("axial_strain", axial_strain)
+    steps = _check_steps(steps)
+    bb = float(b)
+    if not (0.0 <= bb <= 1.0):
+        raise ValueError(f"b = {b!r}: allowed 0 <= b <= 1")
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    a_mat, b_mat = np.zeros((6, 6)), np.zeros((6, 6))
+    a_mat[2, 2] = 1.0
+    b_mat[0, 0] = 1.0
+    b_mat[1, [1, 2, 0]] = [1.0, -bb, -(1.0 - bb)]
+    b_mat[3, 3] = b_mat[4, 4] = b_mat[5, 5] = 1.0
+    target = np.array([-p0, 0.0, -ea, 0.0, 0.0, 0.0])
+    rel = np.array([False, False, True, False, False, False])
+    path = LoadPath(initial_stress=-p0 * np.eye(3))
+    path.add_conditions(steps, a_mat, b_mat, target, rel, name=f"true triaxial b={bb:g}")
+    res = run_path(model, path, **engine)
+    res.add_column("eps_a", -res.strain[:, 2, 2], "axial strain -eps_zz [-], compression +")
+    res.add_column("eta", res["q_kPa"] / res["p_kPa"], "stress ratio sqrt(3 J2) / p [-]")
+    return _finish(res, "true_triaxial", params,
+                   {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "b": bb, "axial_strain": ea, "steps": steps},
+                   [("eps_a", "q_kPa"), ("eps_a", "eps_v")])
+
+
+def rotation(model_or_params="ottawa_c109_induced", p0_kPa: float = 14.0, delta_psi_deg: float = 90.0, *,
+             preshear_strain: float = 0.02, axial_strain: float = 0.05, steps: int = 200,
+             preshear_steps: int | None = None, unload_steps: int = 50, alpha_deg: float = 0.0,
+             rule: str | None = None, **engine) -> ElementResult:
+    """Principal stress rotation in plane strain (directional shear cell, thesis Figs. 45-47).
+
+    The loading plane is x-y; z is the out-of-plane direction (eps_zz = 0, sigma_xz = sigma_yz = 0)
+    and, with the default ``alpha_deg = 0``, also the deposition axis e2 (sand poured normal to the
+    loading plane, as in the directional shear cell: initially isotropic in that plane).
+
+    Stages, all drained, from the hydrostatic -p0 I:
+
+    1. pre-shear: sigma1 along x, eps_xx prescribed to ``-preshear_strain`` (compression), sigma_yy =
+       -p0 and sigma_xy = 0 held;
+    2. unload to hydrostatic: sigma_xx back to -p0 by stress control (sigma_yy = -p0, sigma_xy = 0);
+    3. reshear with sigma1 along the direction at ``delta_psi_deg`` from x in the x-y plane: in that
+       rotated frame (x', y') eps_x'x' is prescribed to ``-axial_strain`` (relative), sigma_y'y' = -p0
+       and sigma_x'y' = 0, so the principal stress directions are fixed at the rotated axes.
+
+    Columns (besides the standard ones): ``eps_1r`` (compression strain along x' since the start of
+    the reshear), ``q_kPa`` = sqrt(3 J2), ``t_kPa`` = (sigma_x'x' - sigma_y'y')/2 in the rotated frame
+    (compression +), ``eps_x'x'`` etc. in the columns ``eps_11r``, ``eps_22r``, ``eps_12r`` (tension +,
+    rotated frame, measured from the start of the path).
+    """
+    p0 = _check_positive("p0_kPa", p0_kPa)
+    pre = _check_positive("preshear_strain", preshear_strain, allow_zero=True)
+    ea = _check_positive("axial_strain", axial_strain)
+    steps = _check_steps(steps)
+    psteps = _check_steps(preshear_steps if preshear_steps is not None else steps)
+    usteps = _check_steps(unload_steps)
+    dpsi = float(delta_psi_deg)
+    if not math.isfinite(dpsi):
+        raise ValueError(f"delta_psi_deg = {delta_psi_deg!r}: must be a finite angle in degrees")
+    model, params = _make_model(model_or_params, alpha_deg, rule)
+    path = LoadPath(initial_stress=-p0 * np.eye(3))
+    out_of_plane = {"eps_zz": 0.0, "sig_xz": 0.0, "sig_yz": 0.0}
+    if pre > 0:
+        path.add(psteps, eps_xx=-pre, sig_yy=-p0, sig_xy=0.0, name="pre-shear", **out_of_plane)
+        path.add(usteps, sig_xx=-p0, sig_yy=-p0, sig_xy=0.0, name="unload", **out_of_plane)
+    frame = rotation_about_z(dpsi)
+    path.add(steps, frame=frame, eps_xx=-ea, sig_yy=-p0, sig_xy=0.0, name=f"reshear dpsi={dpsi:g}", **out_of_plane)
+    res = run_path(model, path, **engine)
+    r = frame
+    e_rot = np.einsum("ai,nab,bj->nij", r, res.strain, r)
+    s_rot = np.einsum("ai,nab,bj->nij", r, res.stress, r)
+    reshear = res["stage"] == len(path.segments) - 1
+    start = int(np.argmax(reshear)) - 1 if reshear.any() else len(res) - 1
+    e1r = -(e_rot[:, 0, 0] - e_rot[start, 0, 0])
+    e1r[:start] = np.nan
+    res.add_column("eps_1r", e1r, "compression strain along x' since the start of the reshear [-] (NaN before)")
+    res.add_column("t_kPa", 0.5 * (s_rot[:, 1, 1] - s_rot[:, 0, 0]), "(sigma_x'x' - sigma_y'y')/2, rotated frame, compression + [kPa]")
+    res.add_column("eps_11r", e_rot[:, 0, 0], "eps_x'x' in the rotated frame [-], tension +")
+    res.add_column("eps_22r", e_rot[:, 1, 1], "eps_y'y' in the rotated frame [-], tension +")
+    res.add_column("eps_12r", e_rot[:, 0, 1], "eps_x'y' in the rotated frame [-], tension +")
+    return _finish(res, "rotation", params,
+                   {"p0_kPa": p0, "delta_psi_deg": dpsi, "preshear_strain": pre, "axial_strain": ea,
+                    "steps": steps, "alpha_deg": float(alpha_deg), "reshear_start_row": start},
+                   [("eps_1r", "q_kPa"), ("eps_1r", "eps_v")])
