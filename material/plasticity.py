@@ -1,0 +1,308 @@
+"""Reference elastoplastic laws with textbook closed-form answers: von Mises and Drucker-Prager.
+
+Both follow the interface of :mod:`material.base` (strain driven, tension positive, kPa) and exist
+to verify the FE solver (Prandtl's bearing capacity, cavity expansion, ...) before it meets the CPA
+law. Integration: one-step elastic predictor / closest-point (radial) return, which is exact for
+these laws with linear hardening; the tangent is the consistent (algorithmic) tangent
+d(sigma_{n+1}) / d(d_strain). Vectorised numpy over the N points (no loop over points); the algebra
+is closed form, so there is no separate numba kernel.
+
+References: de Souza Neto, Peric & Owen (2008), *Computational Methods for Plasticity*, boxes 7.3-7.4
+(von Mises) and 8.5-8.8 (Drucker-Prager); Simo & Hughes (1998), ch. 3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from material.base import STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.elastic import _check_elastic
+
+__all__ = ["VonMises", "DruckerPrager", "von_mises_stress"]
+
+_I2 = np.eye(3)
+_II = np.einsum("ij,kl->ijkl", _I2, _I2)  # 1 (x) 1
+_ISYM = 0.5 * (np.einsum("ik,jl->ijkl", _I2, _I2) + np.einsum("il,jk->ijkl", _I2, _I2))
+_IDEV = _ISYM - _II / 3.0
+
+
+def _dev(a: np.ndarray) -> np.ndarray:
+    return a - np.trace(a, axis1=-2, axis2=-1)[..., None, None] / 3.0 * _I2
+
+
+def _norm(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.einsum("...ij,...ij->...", a, a))
+
+
+def von_mises_stress(stress: np.ndarray) -> np.ndarray:
+    """q = sqrt(3/2 s:s) of (..., 3, 3) stresses [kPa]."""
+    return np.sqrt(1.5) * _norm(_dev(np.asarray(stress, dtype=float)))
+
+
+def _check_nonneg(name: str, value: float, strict: bool = False) -> float:
+    v = float(value)
+    ok = np.isfinite(v) and (v > 0 if strict else v >= 0)
+    if not ok:
+        raise ValueError(f"{name} = {value!r}: must be {'>' if strict else '>='} 0 (finite)")
+    return v
+
+
+class _Base:
+    E: float
+    nu: float
+
+    def _init_elastic(self, E_kPa: float, nu: float) -> None:
+        self.E, self.nu = _check_elastic(E_kPa, nu)
+        self.G = self.E / (2.0 * (1.0 + self.nu))
+        self.K = self.E / (3.0 * (1.0 - 2.0 * self.nu))
+        self.stiffness = 3.0 * self.K * (_II / 3.0) + 2.0 * self.G * _IDEV
+
+    def initial_state(self, n_points: int, stress=None) -> State:
+        """State of ``n_points`` points: zero strain and plastic strain.
+
+        ``stress`` (3, 3) or (N, 3, 3), tension +, is validated but not stored: the stress is passed
+        to :meth:`update`; it is assumed admissible (inside the yield surface).
+        """
+        as_stress_batch(stress, n_points)
+        n = int(n_points)
+        return {
+            "strain": np.zeros((n, 3, 3)),
+            "plastic_strain": np.zeros((n, 3, 3)),
+            "eq_plastic_strain": np.zeros(n),
+            "status": np.zeros(n, dtype=np.int8),
+            "step_ratio": np.ones(n),
+        }
+
+    def _trial(self, d_strain, stress, state):
+        de, s = check_batch(d_strain, stress)
+        n = de.shape[0]
+        check_state(state, n, ("strain", "plastic_strain", "eq_plastic_strain"))
+        trial = s + np.einsum("ijkl,nkl->nij", self.stiffness, de)
+        return de, trial, n
+
+    def _new_state(self, state, de, d_plastic, d_eq):
+        n = de.shape[0]
+        return {
+            "strain": state["strain"] + de,
+            "plastic_strain": state["plastic_strain"] + d_plastic,
+            "eq_plastic_strain": state["eq_plastic_strain"] + d_eq,
+            "status": np.full(n, STATUS_OK, dtype=np.int8),
+            "step_ratio": np.ones(n),
+        }
+
+
+class VonMises(_Base):
+    """J2 plasticity with linear isotropic hardening, q = sqrt(3 J2) <= sigma_y + H eps_bar_p.
+
+    Parameters
+    ----------
+    E_kPa : float
+        Young's modulus [kPa], > 0.
+    nu : float
+        Poisson's ratio, -1 < nu < 0.5.
+    yield_stress_kPa : float
+        Initial uniaxial yield stress sigma_y [kPa], > 0 (the shear strength is sigma_y / sqrt(3)).
+    hardening_kPa : float, optional
+        Linear isotropic hardening modulus H [kPa], >= 0 (0: perfectly plastic), with respect to the
+        equivalent plastic strain eps_bar_p = integral of sqrt(2/3 d_eps_p : d_eps_p).
+
+    Notes
+    -----
+    Radial return (de Souza Neto et al. box 7.3): with the trial deviator s* and q* = sqrt(3/2) |s*|,
+    dgamma = (q* - sigma_y(eps_bar_p)) / (3 G + H), s = (1 - 3 G dgamma / q*) s*, d eps_p = dgamma 3/2 s*/q*.
+    Consistent tangent (box 7.4), N = s*/|s*|:
+    D = K 1(x)1 + 2G (1 - 3 G dgamma / q*) I_dev + 6 G^2 (dgamma / q* - 1 / (3 G + H)) N (x) N.
+    """
+
+    def __init__(self, E_kPa: float, nu: float, yield_stress_kPa: float, hardening_kPa: float = 0.0):
+        self._init_elastic(E_kPa, nu)
+        self.yield_stress = _check_nonneg("yield_stress_kPa", yield_stress_kPa, strict=True)
+        self.hardening = _check_nonneg("hardening_kPa", hardening_kPa)
+
+    def __repr__(self) -> str:
+        return (
+            f"VonMises(E_kPa={self.E:g}, nu={self.nu:g}, yield_stress_kPa={self.yield_stress:g}, "
+            f"hardening_kPa={self.hardening:g})"
+        )
+
+    def yield_function(self, stress: np.ndarray, eq_plastic_strain: np.ndarray) -> np.ndarray:
+        """f = q - (sigma_y + H eps_bar_p) [kPa], (N,)."""
+        return von_mises_stress(stress) - (self.yield_stress + self.hardening * np.asarray(eq_plastic_strain))
+
+    def update(self, d_strain, stress, state: State):
+        """(N,3,3) strain increment and stress (tension +) -> stress, new state, tangent (N,3,3,3,3)."""
+        de, trial, n = self._trial(d_strain, stress, state)
+        G, K, H = self.G, self.K, self.hardening
+        s_tr = _dev(trial)
+        norm_tr = _norm(s_tr)
+        q_tr = np.sqrt(1.5) * norm_tr
+        f_tr = q_tr - (self.yield_stress + H * state["eq_plastic_strain"])
+        plastic = f_tr > 1e-12 * self.yield_stress
+        safe_q = np.where(plastic, q_tr, 1.0)
+        dgamma = np.where(plastic, f_tr / (3.0 * G + H), 0.0)
+        N = s_tr / np.where(plastic, norm_tr, 1.0)[:, None, None]  # unit deviator (used where plastic)
+        scale = 1.0 - 3.0 * G * dgamma / safe_q
+        new_stress = trial - (1.0 - scale)[:, None, None] * s_tr
+        d_plastic = (1.5 * dgamma / safe_q)[:, None, None] * s_tr
+        tangent = np.broadcast_to(self.stiffness, (n, 3, 3, 3, 3)).copy()
+        if plastic.any():
+            p = plastic
+            Np = N[p]
+            tangent[p] = (
+                K * _II
+                + 2.0 * G * scale[p][:, None, None, None, None] * _IDEV
+                + (6.0 * G**2 * (dgamma[p] / q_tr[p] - 1.0 / (3.0 * G + H)))[:, None, None, None, None]
+                * np.einsum("nij,nkl->nijkl", Np, Np)
+            )
+        return new_stress, self._new_state(state, de, d_plastic, dgamma), tangent
+
+
+_MATCH = ("compression", "extension", "plane_strain")
+
+
+def _dp_coefficients(angle_deg: float, match: str) -> tuple[float, float]:
+    """(eta, xi) of sqrt(J2) + eta p - xi c matched to Mohr-Coulomb with angle phi (de Souza Neto 6.121-6.123)."""
+    a = np.deg2rad(angle_deg)
+    if match == "compression":  # outer cone: triaxial compression meridian
+        d = np.sqrt(3.0) * (3.0 - np.sin(a))
+        return 6.0 * np.sin(a) / d, 6.0 * np.cos(a) / d
+    if match == "extension":  # inner cone: triaxial extension meridian
+        d = np.sqrt(3.0) * (3.0 + np.sin(a))
+        return 6.0 * np.sin(a) / d, 6.0 * np.cos(a) / d
+    d = np.sqrt(9.0 + 12.0 * np.tan(a) ** 2)  # plane strain (exact collapse loads with associated flow)
+    return 3.0 * np.tan(a) / d, 3.0 / d
+
+
+class DruckerPrager(_Base):
+    """Drucker-Prager cone sqrt(J2) + eta p - xi c <= 0 matched to Mohr-Coulomb (c, phi), perfectly plastic
+    unless ``hardening_kPa`` (on the cohesion) is given.
+
+    Parameters
+    ----------
+    E_kPa, nu : float
+        Isotropic elasticity [kPa], [-].
+    cohesion_kPa : float
+        Mohr-Coulomb cohesion c [kPa], >= 0 (c = 0 with phi > 0 is a cohesionless cone).
+    friction_deg : float
+        Mohr-Coulomb friction angle phi [deg], 0 <= phi < 90 (phi = 0 with c > 0: a von Mises-type cylinder).
+    dilation_deg : float, optional
+        Dilation angle psi [deg], 0 <= psi <= phi; default psi = phi (associated flow).
+    match : {"plane_strain", "compression", "extension"}
+        Which Mohr-Coulomb meridian the cone goes through (de Souza Neto et al. eqs. 6.121-6.123).
+        ``"plane_strain"`` (default) reproduces the Mohr-Coulomb plane-strain collapse loads
+        (Prandtl) for associated flow; ``"compression"`` the triaxial-compression strength
+        q_f = 2 (c cos phi + p0 sin phi) / (1 - sin phi) (compression positive).
+    hardening_kPa : float, optional
+        Linear hardening of the cohesion, c = c0 + H eps_bar_p, H >= 0.
+
+    Notes
+    -----
+    p = tr(sigma) / 3 (tension positive), J2 = s:s / 2. Return mapping (de Souza Neto et al. box 8.5):
+    to the smooth cone, dgamma = Phi* / (G + K eta eta_bar + xi^2 H), s = (1 - G dgamma / sqrt(J2*)) s*,
+    p = p* - K eta_bar dgamma, d eps_bar_p = xi dgamma; if that overshoots the apex
+    (sqrt(J2*) - G dgamma < 0), return to the apex: s = 0, p = p* - K d eps_v_p with
+    d eps_v_p = (p* - xi c_n / eta) / (K + xi^2 H / (eta eta_bar)), d eps_bar_p = xi d eps_v_p / eta_bar.
+    eta_bar is eta with psi in place of phi. The consistent tangent (box 8.6) is non-symmetric when
+    psi != phi; at the apex of a perfectly plastic cone it is zero (the solver must cope: cut back).
+    """
+
+    def __init__(
+        self,
+        E_kPa: float,
+        nu: float,
+        cohesion_kPa: float,
+        friction_deg: float,
+        dilation_deg: float | None = None,
+        match: str = "plane_strain",
+        hardening_kPa: float = 0.0,
+    ):
+        self._init_elastic(E_kPa, nu)
+        self.cohesion = _check_nonneg("cohesion_kPa", cohesion_kPa)
+        phi = float(friction_deg)
+        if not (np.isfinite(phi) and 0.0 <= phi < 90.0):
+            raise ValueError(f"friction_deg = {friction_deg!r}: allowed 0 <= friction_deg < 90")
+        psi = phi if dilation_deg is None else float(dilation_deg)
+        if not (np.isfinite(psi) and 0.0 <= psi <= phi):
+            raise ValueError(f"dilation_deg = {dilation_deg!r}: allowed 0 <= dilation_deg <= friction_deg = {phi:g}")
+        if match not in _MATCH:
+            raise ValueError(f"match = {match!r}: allowed {list(_MATCH)}")
+        if self.cohesion == 0.0 and phi == 0.0:
+            raise ValueError("cohesion_kPa = 0 and friction_deg = 0: the material would have no strength")
+        self.friction_deg, self.dilation_deg, self.match = phi, psi, match
+        self.hardening = _check_nonneg("hardening_kPa", hardening_kPa)
+        self.eta, self.xi = _dp_coefficients(phi, match)
+        self.eta_bar, _ = _dp_coefficients(psi, match)
+
+    def __repr__(self) -> str:
+        return (
+            f"DruckerPrager(E_kPa={self.E:g}, nu={self.nu:g}, cohesion_kPa={self.cohesion:g}, "
+            f"friction_deg={self.friction_deg:g}, dilation_deg={self.dilation_deg:g}, match={self.match!r})"
+        )
+
+    def yield_function(self, stress: np.ndarray, eq_plastic_strain: np.ndarray) -> np.ndarray:
+        """Phi = sqrt(J2) + eta p - xi c(eps_bar_p) [kPa], (N,)."""
+        stress = np.asarray(stress, dtype=float)
+        sqrt_j2 = _norm(_dev(stress)) / np.sqrt(2.0)
+        p = np.trace(stress, axis1=-2, axis2=-1) / 3.0
+        c = self.cohesion + self.hardening * np.asarray(eq_plastic_strain)
+        return sqrt_j2 + self.eta * p - self.xi * c
+
+    def update(self, d_strain, stress, state: State):
+        """(N,3,3) strain increment and stress (tension +) -> stress, new state, tangent (N,3,3,3,3)."""
+        de, trial, n = self._trial(d_strain, stress, state)
+        G, K, H = self.G, self.K, self.hardening
+        eta, eta_b, xi = self.eta, self.eta_bar, self.xi
+        s_tr = _dev(trial)
+        norm_tr = _norm(s_tr)
+        sqrt_j2 = norm_tr / np.sqrt(2.0)
+        p_tr = np.trace(trial, axis1=1, axis2=2) / 3.0
+        c_n = self.cohesion + H * state["eq_plastic_strain"]
+        phi_tr = sqrt_j2 + eta * p_tr - xi * c_n
+        plastic = phi_tr > 1e-12 * (sqrt_j2 + eta * np.abs(p_tr) + xi * c_n) + 1e-300
+
+        dgamma = np.where(plastic, phi_tr / (G + K * eta * eta_b + xi**2 * H), 0.0)
+        apex = plastic & (sqrt_j2 - G * dgamma < 0.0)
+        cone = plastic & ~apex
+
+        new_stress = trial.copy()
+        d_plastic = np.zeros_like(trial)
+        d_eq = np.zeros(n)
+        tangent = np.broadcast_to(self.stiffness, (n, 3, 3, 3, 3)).copy()
+
+        if cone.any():
+            c = cone
+            sj = sqrt_j2[c]
+            dg = dgamma[c]
+            N = s_tr[c] / norm_tr[c][:, None, None]
+            fac = 1.0 - G * dg / sj
+            p_new = p_tr[c] - K * eta_b * dg
+            new_stress[c] = fac[:, None, None] * s_tr[c] + p_new[:, None, None] * _I2
+            # d eps_p = dgamma dPsi/dsigma, Psi = sqrt(J2) + eta_bar p: dPsi/dsigma = N / sqrt2 + eta_bar / 3 I
+            d_plastic[c] = dg[:, None, None] * (N / np.sqrt(2.0) + eta_b / 3.0 * _I2)
+            d_eq[c] = xi * dg
+            A = 1.0 / (G + K * eta * eta_b + xi**2 * H)
+            a1 = (2.0 * G * fac)[:, None, None, None, None]
+            a2 = (2.0 * G * (G * dg / sj) - 2.0 * G * G * A)[:, None, None, None, None]
+            NN = np.einsum("nij,nkl->nijkl", N, N)
+            NI = np.einsum("nij,kl->nijkl", N, _I2)
+            IN = np.einsum("ij,nkl->nijkl", _I2, N)
+            # box 8.6 (de Souza Neto et al.), with N = s*/|s*| and sqrt(J2*) = |s*|/sqrt2
+            tangent[c] = (
+                a1 * _IDEV
+                + a2 * NN
+                - np.sqrt(2.0) * G * A * K * (eta * NI + eta_b * IN)
+                + K * (1.0 - K * eta * eta_b * A) * _II
+            )
+        if apex.any():
+            a = apex
+            # psi = 0 (eta_bar = 0): no volumetric flow on the cone; the apex then acts as a tension
+            # cut-off that does not harden the cohesion (alpha = 0)
+            alpha = xi / eta_b if eta_b > 0.0 else 0.0
+            beta = xi / eta if eta > 0.0 else np.inf
+            dev_v = (p_tr[a] - beta * c_n[a]) / (K + alpha * beta * H)
+            p_new = p_tr[a] - K * dev_v
+            new_stress[a] = p_new[:, None, None] * _I2
+            d_plastic[a] = (s_tr[a] / (2.0 * G)) + (dev_v / 3.0)[:, None, None] * _I2
+            d_eq[a] = alpha * dev_v
+            tangent[a] = (K * (1.0 - K / (K + alpha * beta * H)) * _II)[None]
+        return new_stress, self._new_state(state, de, d_plastic, d_eq), tangent
