@@ -19,4 +19,6 @@ __all__ = [
     "base",
     "LinearElastic",
     "driver",
+    "VonMises",
+    "DruckerPrager",
 ]
