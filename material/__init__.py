@@ -7,6 +7,7 @@ Public names (API.md): ``CPAModel``, ``CPAParameters``, ``load_preset``, ``load_
 from material.parameters import CPAParameters, load_parameters, load_preset, save_parameters
 from material import anisotropy, base
 from material.elastic import LinearElastic
+from material.cpa import CPAModel
 from material.plasticity import DruckerPrager, VonMises
 from material import driver
 
@@ -18,6 +19,7 @@ __all__ = [
     "anisotropy",
     "base",
     "LinearElastic",
+    "CPAModel",
     "driver",
     "VonMises",
     "DruckerPrager",

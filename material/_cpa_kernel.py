@@ -138,8 +138,9 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
         active[a] = False
         dkap[a] = 0.0
         if sigma_N <= 0.0:
-            # tension side: the model admits no normal tension with shear above the cohesion
-            if tau > c + tau_tiny:
+            # tension side: no normal tension beyond the apex sigma0 = c / eta_f, and no shear above
+            # the cohesion on a plane that is not compressed (MODEL.md, tension cut-off)
+            if tau > c + tau_tiny or sigma_N < -c / ef - tau_tiny:
                 return False, np.inf
             continue
         etah = (tau - c) / sigma_N
@@ -368,6 +369,26 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     sn6 = np.empty(6)
     dev_nn = np.empty(6)
     total_it = 0
+    # tension cut-off (MODEL.md "Tension"): when the elastic trial stress has no compression left
+    # (mean stress >= 0) no stress state of the cone can follow the increment: the point goes to the
+    # apex (stress free), the whole misfit becomes plastic opening, kappa is unchanged.
+    p_trial = 0.0
+    for i in range(3):
+        acc = sig_n[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        p_trial += acc / 3.0
+    if p_trial >= 0.0:
+        for i in range(6):
+            sig_out[i] = 0.0
+        for a in range(M):
+            kap_out[a] = kap_n[a]
+        if want_tangent:
+            rho = fopt[_F_CUTOFF_STIFFNESS]
+            for i in range(6):
+                for j in range(6):
+                    D_out[i, j] = rho * stiff[i, j]
+        return _OK, 1, 0, True
     for level in range(max_level + 1):
         m = 1 << level
         for i in range(6):
@@ -492,26 +513,6 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     for j in range(6):
                         D_out[i, j] = Dsig[i, j]
             return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
-    # tension cut-off (MODEL.md "Tension"): when the elastic trial stress has no compression left
-    # (mean stress >= 0) no stress state of the cone can follow the increment: the point goes to the
-    # apex (stress free), the whole misfit becomes plastic opening, kappa is unchanged.
-    p_trial = 0.0
-    for i in range(3):
-        acc = sig_n[i]
-        for j in range(6):
-            acc += stiff[i, j] * de[j]
-        p_trial += acc / 3.0
-    if p_trial >= 0.0:
-        for i in range(6):
-            sig_out[i] = 0.0
-        for a in range(M):
-            kap_out[a] = kap_n[a]
-        if want_tangent:
-            rho = fopt[_F_CUTOFF_STIFFNESS]
-            for i in range(6):
-                for j in range(6):
-                    D_out[i, j] = rho * stiff[i, j]
-        return _OK, 1, total_it, True
     for i in range(6):
         sig_out[i] = sig_n[i]
     for a in range(M):

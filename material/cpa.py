@@ -205,7 +205,9 @@ class CPAModel:
                     f"initial stress: {int(bad.any(axis=1).sum())} point(s) are at or beyond the failure surface "
                     f"of some plane (first: point {i}); allowed: stresses strictly inside the CPA strength envelope"
                 )
-            etah = np.maximum(etah, 0.0)
+            # round-off shear (|tau| ~ 1e-16 |sigma|) counts as none, as in the kernel
+            tiny = 1e-13 * np.abs(sig).max(axis=(1, 2))[:, None]
+            etah = np.where(tau <= tiny, 0.0, np.maximum(etah, 0.0))
             kappa = self.params.A * etah / (zef - etah)
         return {
             "strain": np.zeros((n, 3, 3)),

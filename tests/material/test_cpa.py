@@ -1,0 +1,266 @@
+"""The CPA Gauss-point routine: elasticity, consistent tangent, objectivity, robustness, bad input."""
+
+import numpy as np
+import pytest
+
+from material import load_preset
+from material.anisotropy import axes_from_alpha
+from material.base import STATUS_FAILED, STATUS_OK, STATUS_SUBSTEPPED
+from material.cpa import CPAModel, replay
+from material.cpa_reference import residual
+
+# a generic strain increment (no component zero, so no plane sits exactly on tau = 0)
+DE = np.array([[0.8e-3, 1e-4, 2e-4], [1e-4, 0.6e-3, -1.5e-4], [2e-4, -1.5e-4, -2e-3]])
+
+
+def _loaded(model, n_steps, de=DE, p0=100.0):
+    sig = -p0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    for _ in range(n_steps):
+        sig, st, _ = model.update(de[None], sig, st)
+        assert st["status"][0] != STATUS_FAILED
+    return sig, st
+
+
+def _fd_tangent(model, sig, st, de, h=1e-7):
+    D = np.zeros((3, 3, 3, 3))
+    for k in range(3):
+        for l in range(k, 3):
+            E = np.zeros((3, 3))
+            E[k, l] += 0.5
+            E[l, k] += 0.5
+            sp, _, _ = model.update((de + h * E)[None], sig, st, tangent=False)
+            sm, _, _ = model.update((de - h * E)[None], sig, st, tangent=False)
+            col = (sp[0] - sm[0]) / (2 * h)
+            D[:, :, k, l] = col
+            D[:, :, l, k] = col
+    return D
+
+
+def test_isotropic_compression_is_elastic_with_bulk_modulus():
+    p = load_preset("ottawa_c109")
+    model = CPAModel(p, axes=axes_from_alpha(30.0))
+    n = 4
+    sig = np.repeat(-10.0 * np.eye(3)[None], n, axis=0)
+    st = model.initial_state(n, stress=sig)
+    de = np.repeat(-1e-3 * np.eye(3)[None], n, axis=0) * np.arange(1, n + 1)[:, None, None]
+    new, st2, D = model.update(de, sig, st)
+    K = p.E / (3 * (1 - 2 * p.nu))
+    dp = -np.trace(new - sig, axis1=1, axis2=2) / 3
+    np.testing.assert_allclose(dp, K * 3e-3 * np.arange(1, n + 1), rtol=1e-13)
+    assert np.all(st2["kappa"] == 0.0)
+    assert np.abs(st2["plastic_strain"]).max() < 1e-15
+    assert np.all(st2["status"] == STATUS_OK)
+    # the tangent is the elastic one: K on the volumetric part
+    assert D[0, 0, 0, 0, 0] + 2 * D[0, 0, 0, 1, 1] == pytest.approx(3 * K, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "preset,beta,alpha,steps",
+    [
+        ("ottawa_c109", 0.0, 0.0, 1),    # first plastic step from isotropic
+        ("ottawa_c109", 0.0, 30.0, 10),  # hardening
+        ("ottawa_c109", 0.0, 90.0, 40),  # near failure (mobilised ~0.9)
+        ("ottawa_c109_induced", 0.1, 45.0, 15),
+        ("ottawa_c109_induced", 5.0, 60.0, 30),  # induced anisotropy: eta_f depends on strain
+    ],
+)
+def test_consistent_tangent_matches_finite_differences(preset, beta, alpha, steps):
+    model = CPAModel(load_preset(preset).replace(beta=beta), axes=axes_from_alpha(alpha))
+    sig, st = _loaded(model, steps - 1)
+    _, st1, D = model.update(DE[None], sig, st)
+    assert st1["status"][0] == STATUS_OK
+    Dfd = _fd_tangent(model, sig, st, DE)
+    err = np.abs(D[0] - Dfd).max() / np.abs(Dfd).max()
+    assert err < 1e-5, err
+    if steps >= 40:
+        assert st1["mobilised_ratio"][0] > 0.85
+
+
+def test_tangent_in_elastic_unloading_is_hooke():
+    model = CPAModel("ottawa_c109")
+    sig, st = _loaded(model, 10)
+    new, st1, D = model.update(-0.05 * DE[None], sig, st)  # small reversal: every plane unloads
+    assert np.all(st1["kappa"] == st["kappa"])
+    from material.elastic import isotropic_stiffness
+
+    np.testing.assert_allclose(D[0], isotropic_stiffness(6000.0, 0.33), rtol=1e-12, atol=1e-9)
+
+
+def test_substepped_tangent_is_consistent():
+    """With few Newton iterations allowed the routine sub-steps; the chain-rule tangent stays exact."""
+    p = load_preset("ottawa_c109_induced").replace(beta=5.0)
+    model = CPAModel(p, axes=axes_from_alpha(40.0), maxit=4)
+    big = 8 * DE
+    sig, st = _loaded(model, 2, de=big)
+    _, st1, D = model.update(big[None], sig, st)
+    assert st1["status"][0] == STATUS_SUBSTEPPED and st1["substeps"][0] > 1
+    assert st1["step_ratio"][0] < 1
+    err = np.abs(D[0] - _fd_tangent(model, sig, st, big)).max() / np.abs(D[0]).max()
+    assert err < 1e-5, err
+
+
+def test_converged_stress_zeroes_the_numpy_reference_residual():
+    model = CPAModel(load_preset("ottawa_c109_induced").replace(beta=5.0), axes=axes_from_alpha(20.0))
+    sig, st = _loaded(model, 12)
+    new, st1, _ = model.update(DE[None], sig, st)
+    r = residual(model, new[0], sig[0], DE, st["kappa"][0], st["strain"][0] + DE)
+    assert np.abs(r).max() < 1e-12 * 1e3  # strain units; |DE| ~ 2e-3
+    assert np.abs(r).max() / np.abs(DE).max() < 1e-9
+    # the reference residual is not trivially small: at the elastic trial it is of order d_eps
+    from material.elastic import isotropic_stiffness
+
+    trial = sig[0] + np.einsum("ijkl,kl->ij", isotropic_stiffness(6000.0, 0.33), DE)
+    r_trial = residual(model, 0.5 * (trial + new[0]), sig[0], DE, st["kappa"][0], st["strain"][0] + DE)
+    assert np.abs(r_trial).max() > 1e-5
+
+
+def _rotation(theta, axis):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
+
+
+@pytest.mark.parametrize("beta", [0.0, 5.0])
+def test_objectivity_rotating_axes_stress_and_strain_together(beta):
+    p = load_preset("ottawa_c109").replace(beta=beta)
+    R0 = axes_from_alpha(35.0)
+    Q = _rotation(0.7, [0.3, -1.0, 0.5])
+    m1 = CPAModel(p, axes=R0)
+    m2 = CPAModel(p, axes=Q @ R0)
+    sig1 = -100.0 * np.eye(3)[None]
+    sig2 = sig1.copy()
+    st1 = m1.initial_state(1, stress=sig1[0])
+    st2 = m2.initial_state(1, stress=sig2[0])
+    de2 = Q @ DE @ Q.T
+    for _ in range(15):
+        sig1, st1, D1 = m1.update(DE[None], sig1, st1)
+        sig2, st2, D2 = m2.update(de2[None], sig2, st2)
+    np.testing.assert_allclose(sig2[0], Q @ sig1[0] @ Q.T, atol=1e-10 * np.abs(sig1).max())
+    np.testing.assert_allclose(st2["kappa"], st1["kappa"], rtol=1e-10, atol=1e-16)
+    D1r = np.einsum("ia,jb,kc,ld,abcd->ijkl", Q, Q, Q, Q, D1[0])
+    np.testing.assert_allclose(D2[0], D1r, atol=1e-10 * np.abs(D1).max())
+
+
+def test_batch_equals_points_one_by_one(rng):
+    model = CPAModel("ottawa_c109", axes=axes_from_alpha(60.0))
+    n = 7
+    sig = np.repeat(-80.0 * np.eye(3)[None], n, axis=0)
+    st = model.initial_state(n, stress=sig)
+    de = rng.normal(scale=1e-3, size=(n, 3, 3))
+    de = 0.5 * (de + de.transpose(0, 2, 1)) - 1e-3 * np.eye(3)
+    for _ in range(3):
+        new, st_new, D = model.update(de, sig, st)
+        for i in (0, 3, 6):
+            s_i, _, D_i = model.update(de[i:i + 1], sig[i:i + 1], {k: v[i:i + 1] for k, v in st.items()})
+            np.testing.assert_array_equal(s_i[0], new[i])
+            np.testing.assert_array_equal(D_i[0], D[i])
+        sig, st = new, st_new
+
+
+def test_update_does_not_modify_its_inputs():
+    model = CPAModel("ottawa_c109")
+    sig, st = _loaded(model, 3)
+    sig0 = sig.copy()
+    st0 = {k: v.copy() for k, v in st.items()}
+    model.update(DE[None], sig, st)
+    np.testing.assert_array_equal(sig, sig0)
+    for k in st:
+        np.testing.assert_array_equal(st[k], st0[k])
+
+
+def test_tension_cutoff_goes_to_the_apex():
+    model = CPAModel("ottawa_c109")
+    sig = -10.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    new, st1, D = model.update(1e-2 * np.eye(3)[None], sig, st)  # volumetric extension beyond p = 0
+    assert np.all(new == 0.0)
+    assert st1["tension_cutoff"][0] and st1["status"][0] == STATUS_OK
+    assert np.isfinite(D).all() and 0 < D[0, 0, 0, 0, 0] < 1e-3 * 6000
+    # plastic opening takes the whole misfit: eps_p = d_eps + S sigma_n
+    K = 6000.0 / (3 * (1 - 2 * 0.33))
+    assert np.trace(st1["plastic_strain"][0]) == pytest.approx(3e-2 - 10.0 / K * 1.0, rel=1e-12)
+    # from the apex, compression brings it back
+    back, st2, _ = model.update(-2e-2 * np.eye(3)[None], new, st1)
+    assert st2["status"][0] == STATUS_OK and not st2["tension_cutoff"][0]
+    assert np.trace(back[0]) < 0
+
+
+def test_failed_point_returns_start_stress_and_a_replay_file(tmp_path):
+    model = CPAModel("ottawa_c109", maxit=1, max_substep_level=0, replay_dir=tmp_path)
+    sig, st = _loaded(CPAModel("ottawa_c109"), 5)
+    new, st1, D = model.update(DE[None], sig, st)
+    assert st1["status"][0] == STATUS_FAILED
+    assert 0 < st1["step_ratio"][0] < 1
+    np.testing.assert_array_equal(new, sig)
+    assert np.isfinite(D).all()
+    files = list(tmp_path.glob("cpa-failure-*.npz"))
+    assert len(files) == 1
+    # replay with the default options converges and agrees with a fresh model
+    _, stress_r, state_r, _ = replay(files[0], maxit=30, max_substep_level=6)
+    ref, _, _ = CPAModel("ottawa_c109").update(DE[None], sig, st)
+    assert state_r["status"][0] == STATUS_OK
+    np.testing.assert_allclose(stress_r, ref, rtol=1e-12)
+
+
+def test_initial_anisotropic_stress_releases_no_slip_burst():
+    model = CPAModel("ottawa_c109")
+    k0 = np.diag([-50.0, -50.0, -100.0])
+    st = model.initial_state(1, stress=k0)
+    assert st["kappa"].max() > 0
+    tiny = 1e-8 * DE
+    new, st1, _ = model.update(tiny[None], k0[None], st)
+    assert np.abs(new[0] - k0).max() < 1e-3  # ~ E |tiny|, not a jump
+    with pytest.raises(ValueError, match="failure surface"):
+        model.initial_state(1, stress=np.diag([-1.0, -1.0, -100.0]))
+
+
+def test_large_increments_converge_at_first_order_to_many_small_ones():
+    """Backward Euler: a fully strain-driven path (4 % axial) in 10 steps is within 5 % of 1000
+    steps, and 100 steps are ~10x closer (first-order convergence of the flow direction)."""
+    model = CPAModel("ottawa_c109")
+    total = 20 * DE
+    ends = {}
+    for n in (10, 100, 1000):
+        sig = -100.0 * np.eye(3)[None]
+        st = model.initial_state(1, stress=sig[0])
+        for _ in range(n):
+            sig, st, _ = model.update((total / n)[None], sig, st, tangent=False)
+        assert st["status"][0] != STATUS_FAILED
+        ends[n] = sig[0]
+    scale = np.abs(ends[1000]).max()
+    e10 = np.abs(ends[10] - ends[1000]).max() / scale
+    e100 = np.abs(ends[100] - ends[1000]).max() / scale
+    assert e10 < 0.05, e10
+    assert 5 < e10 / e100 < 20, (e10, e100)
+
+
+@pytest.mark.parametrize(
+    "bad,match",
+    [
+        (lambda de, s, st: (de[:, :2], s, st), "shape"),
+        (lambda de, s, st: (de + np.triu(np.ones((3, 3)), 1) * 1e-3, s, st), "not symmetric"),
+        (lambda de, s, st: (de * np.nan, s, st), "NaN"),
+        (lambda de, s, st: (de, np.full_like(s, np.inf), st), "NaN or inf"),
+        (lambda de, s, st: (de, s, {k: v for k, v in st.items() if k != "kappa"}), "missing key 'kappa'"),
+        (lambda de, s, st: (np.repeat(de, 2, 0), np.repeat(s, 2, 0), st), "leading axis"),
+    ],
+)
+def test_bad_input_is_named(bad, match):
+    model = CPAModel("ottawa_c109")
+    sig = -100.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    args = bad(DE[None].copy(), sig.copy(), st)
+    with pytest.raises(ValueError, match=match):
+        model.update(*args)
+
+
+def test_bad_construction_is_named():
+    with pytest.raises(KeyError, match="unknown preset"):
+        CPAModel("no_such_sand")
+    with pytest.raises(KeyError, match="bazant-oh-33"):
+        CPAModel("ottawa_c109", rule="nope")
+    with pytest.raises(ValueError, match="left-handed"):
+        CPAModel("ottawa_c109", axes=np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(ValueError, match="maxit"):
+        CPAModel("ottawa_c109", maxit=0)
