@@ -1,5 +1,240 @@
-"""``femgran element ...`` subcommand."""
+"""``femgran element ...``: single-point element tests of the CPA law from the command line.
+
+Examples::
+
+    femgran element triaxial                        # ottawa_c109, p0 = 100 kPa, alpha = 0 and 90 -> out/element
+    femgran element triaxial --p0 50 100 --alpha 0 90 --steps 300
+    femgran element direct-shear --sigma-n 10 50 75 --alpha 0 45 90
+    femgran element rotation --dpsi 0 45 90 --set beta=5
+    femgran element path lab.csv --substeps 5      # replay lab data (see material.driver.LoadPath.from_csv)
+
+Every run writes into ``--out`` (default ``out/element``): one CSV per run (``<test>_<tag>.csv``, with
+a commented header), one PNG overlaying the runs, the parameter file used (``parameters.toml``) and
+``run.json`` (command, options, package version, seed = none: the tests are deterministic).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["register"]
+
+# test name -> (driver function, swept options as (cli dest, driver keyword, default list))
+_SWEEPS = {
+    "triaxial": [("p0", "p0_kPa", [100.0]), ("alpha", "alpha_deg", [0.0, 90.0])],
+    "oedometer": [("p0", "p0_kPa", [10.0]), ("alpha", "alpha_deg", [0.0])],
+    "plane-strain": [("p0", "p0_kPa", [100.0]), ("alpha", "alpha_deg", [0.0, 90.0])],
+    "true-triaxial": [("p0", "p0_kPa", [100.0]), ("alpha", "alpha_deg", [0.0]), ("b", "b", [0.0, 0.5, 1.0])],
+    "direct-shear": [("sigma_n", "sigma_n_kPa", [50.0]), ("alpha", "alpha_deg", [0.0, 90.0])],
+    "simple-shear": [("sigma_n", "sigma_n_kPa", [50.0]), ("alpha", "alpha_deg", [0.0, 90.0])],
+    "cyclic-simple-shear": [("sigma_n", "sigma_n_kPa", [50.0]), ("alpha", "alpha_deg", [0.0])],
+    "rotation": [("p0", "p0_kPa", [14.0]), ("dpsi", "delta_psi_deg", [0.0, 90.0])],
+    "path": [],
+}
+_SWEEP_FLAGS = {"p0": "--p0", "alpha": "--alpha", "sigma_n": "--sigma-n", "b": "--b", "dpsi": "--dpsi"}
+_SWEEP_HELP = {
+    "p0": "initial isotropic (cell) pressure(s) [kPa]",
+    "alpha": "deposition angle(s) between the loading axis (shear-plane normal) and e2 [deg]",
+    "sigma_n": "normal stress(es) on the shear plane [kPa]",
+    "b": "intermediate principal stress ratio(s) b = (s2 - s3)/(s1 - s3)",
+    "dpsi": "rotation(s) of the major principal stress between pre-shear and reshear [deg]",
+}
+_HELP = {
+    "triaxial": "drained/undrained triaxial compression or extension (Figs. 20-21)",
+    "oedometer": "K0 compression (all lateral and shear strains zero)",
+    "plane-strain": "biaxial plane-strain compression, sigma3 held, eps_yy = 0",
+    "true-triaxial": "true triaxial compression at constant b",
+    "direct-shear": "direct shear as simple shear of a band of thickness t (Figs. 5-8, 16-19)",
+    "simple-shear": "simple shear at constant normal stress or constant height",
+    "cyclic-simple-shear": "strain-controlled cyclic simple shear",
+    "rotation": "principal stress rotation in plane strain, directional shear cell (Figs. 45-47)",
+    "path": "replay a mixed stress/strain path from a CSV of lab data",
+}
 
 
 def register(subparsers) -> None:
-    """Add the element-test subcommand (filled in with the element drivers)."""
+    """Add ``femgran element TEST ...`` to the top-level parser."""
+    element = subparsers.add_parser(
+        "element",
+        help="single-point element tests of the material law (material.driver)",
+        description="Single-point element tests; writes CSV + PNG + parameters + run.json into --out.",
+    )
+    tests = element.add_subparsers(dest="test", metavar="TEST")
+    tests.required = True
+    common = argparse.ArgumentParser(add_help=False)
+    g = common.add_argument_group("material and output")
+    g.add_argument("--preset", default=None,
+                   help="parameter preset (default ottawa_c109; ottawa_c109_induced for rotation)")
+    g.add_argument("--params", metavar="FILE", default=None, help="parameter file (TOML/JSON), overrides --preset")
+    g.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
+                   help="override a parameter, e.g. --set beta=5 (repeatable)")
+    g.add_argument("--rule", default="bazant-oh-33", help="plane integration rule (material.planes.available_rules())")
+    g.add_argument("--steps", type=int, default=None, help="load steps of the main stage (default: the driver's)")
+    g.add_argument("--out", default="out/element", help="output folder (default out/element)")
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g.add_argument("--no-plot", action="store_true", help="skip the PNG")
+
+    for name, sweeps in _SWEEPS.items():
+        p = tests.add_parser(name, parents=[common], help=_HELP[name], description=_HELP[name])
+        for dest, _, default in sweeps:
+            p.add_argument(_SWEEP_FLAGS[dest], dest=dest, type=float, nargs="+", default=default,
+                           help=f"{_SWEEP_HELP[dest]} (default {' '.join(f'{v:g}' for v in default)})")
+        _add_specific(p, name)
+        p.set_defaults(func=_run)
+
+
+def _add_specific(p, name: str) -> None:
+    if name in ("triaxial", "oedometer", "plane-strain", "true-triaxial"):
+        default = {"triaxial": 0.15, "oedometer": 0.02}.get(name, 0.1)
+        p.add_argument("--axial-strain", type=float, default=default, help=f"axial strain applied (default {default})")
+    if name == "triaxial":
+        p.add_argument("--undrained", action="store_true", help="constant volume, report the excess pore pressure")
+        p.add_argument("--extension", action="store_true", help="axial extension instead of compression")
+    if name == "direct-shear":
+        p.add_argument("--displacement", type=float, default=0.006, help="shear displacement [m] (default 0.006)")
+    if name in ("simple-shear",):
+        p.add_argument("--gamma", type=float, default=0.2, help="engineering shear strain (default 0.2)")
+    if name in ("simple-shear", "cyclic-simple-shear"):
+        p.add_argument("--constant-height", action="store_true", help="hold the normal strain instead of the normal stress")
+    if name == "cyclic-simple-shear":
+        p.add_argument("--amplitude", type=float, default=0.005, help="shear strain amplitude (default 0.005)")
+        p.add_argument("--cycles", type=int, default=3, help="number of cycles (default 3)")
+    if name == "rotation":
+        p.add_argument("--preshear-strain", type=float, default=0.02, help="pre-shear strain along x (default 0.02)")
+        p.add_argument("--axial-strain", type=float, default=0.05, help="reshear strain along the rotated axis (default 0.05)")
+    if name == "path":
+        p.add_argument("csv", help="CSV with columns sig_<c>_kPa / eps_<c> per component (tension +)")
+        p.add_argument("--substeps", type=int, default=1, help="load steps per CSV row (default 1)")
+
+
+def _parameters(args):
+    from material.parameters import load_parameters, load_preset
+
+    if args.params:
+        params = load_parameters(args.params)
+    else:
+        params = load_preset(args.preset or ("ottawa_c109_induced" if args.test == "rotation" else "ottawa_c109"))
+    changes = {}
+    for item in args.set:
+        if "=" not in item:
+            raise ValueError(f"--set {item!r}: expected KEY=VALUE, e.g. beta=5")
+        key, value = item.split("=", 1)
+        key = key.strip()
+        try:
+            changes[key] = [float(v) for v in value.split(",")] if key in ("a", "b") else float(value)
+        except ValueError:
+            raise ValueError(f"--set {item!r}: value {value!r} is not a number") from None
+    return params.replace(**changes) if changes else params
+
+
+def _specific_kwargs(args) -> dict:
+    t = args.test
+    kw: dict = {}
+    if args.steps is not None:
+        kw["steps" if t != "cyclic-simple-shear" else "steps_per_quarter"] = args.steps
+    if t in ("triaxial", "oedometer", "plane-strain", "true-triaxial", "rotation"):
+        kw["axial_strain"] = args.axial_strain
+    if t == "triaxial":
+        kw.update(drained=not args.undrained, extension=args.extension)
+    if t == "direct-shear":
+        kw["shear_displacement"] = args.displacement
+    if t == "simple-shear":
+        kw.update(shear_strain=args.gamma, constant_height=args.constant_height)
+    if t == "cyclic-simple-shear":
+        kw.update(gamma_amplitude=args.amplitude, cycles=args.cycles, constant_height=args.constant_height)
+    if t == "rotation":
+        kw["preshear_strain"] = args.preshear_strain
+    return kw
+
+
+def _run(args) -> int:
+    from femgran import __version__
+    from material import driver
+    from material.parameters import save_parameters
+
+    params = _parameters(args)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = args.test.replace("-", "_")
+    t0 = time.perf_counter()
+    runs = []
+    if args.test == "path":
+        from material.cpa import CPAModel
+
+        path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
+        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress)
+        runs.append(("path", {}, res))
+    else:
+        sweeps = _SWEEPS[args.test]
+        fn = getattr(driver, stem)
+        values = [getattr(args, dest) for dest, _, _ in sweeps]
+        for combo in itertools.product(*values):
+            kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
+            tag = "_".join(f"{dest}{v:g}" for (dest, _, _), v in zip(sweeps, combo))
+            res = fn(params, rule=args.rule, progress=not args.no_progress, **kw, **_specific_kwargs(args))
+            runs.append((tag, kw, res))
+    files = []
+    for tag, kw, res in runs:
+        f = res.to_csv(out / f"{stem}_{tag}.csv")
+        files.append(f.name)
+        if not res.completed:
+            print(f"femgran element {args.test}: {tag}: stopped early: {res.message}", file=sys.stderr)
+    if not args.no_plot:
+        files.append(_plot(runs, out / f"{stem}.png", f"{args.test} ({params.name})").name)
+    save_parameters(params, out / "parameters.toml", femgran_version=__version__)
+    files.append("parameters.toml")
+    run_info = {
+        "command": "femgran " + " ".join(sys.argv[1:]) if sys.argv and "femgran" in sys.argv[0] else None,
+        "test": args.test,
+        "options": {k: v for k, v in vars(args).items() if k != "func"},
+        "femgran_version": __version__,
+        "seed": None,
+        "deterministic": True,
+        "wall_time_s": round(time.perf_counter() - t0, 3),
+        "runs": [{"tag": tag, "completed": res.completed, "message": res.message, "rows": len(res)} for tag, _, res in runs],
+        "files": files,
+    }
+    (out / "run.json").write_text(json.dumps(run_info, indent=2, default=str) + "\n")
+    print(f"femgran element {args.test}: {len(runs)} run(s) -> {out}/ ({', '.join(files)})")
+    for tag, _, res in runs:
+        print("  " + _summary(tag, res))
+    return 0 if all(res.completed for _, _, res in runs) else 1
+
+
+def _summary(tag: str, res) -> str:
+    bits = [tag]
+    for col in ("tau_kPa", "t_kPa", "q_kPa"):
+        if col in res:
+            bits.append(f"max {col} = {res[col].max():.4g}")
+            break
+    for col in ("eps_v", "normal_displacement_m"):
+        if col in res:
+            bits.append(f"final {col} = {res[col][-1]:.4g}")
+            break
+    if not res.completed:
+        bits.append("STOPPED EARLY")
+    return ", ".join(bits)
+
+
+def _plot(runs, path: Path, title: str) -> Path:
+    from matplotlib.figure import Figure
+
+    pairs = runs[0][2].plot_pairs or [("eps_q", "q_kPa"), ("eps_q", "eps_v")]
+    fig = Figure(figsize=(5.0 * len(pairs), 4.0), layout="constrained")
+    axes = fig.subplots(1, len(pairs), squeeze=False)[0]
+    for tag, _, res in runs:
+        for ax, (x, y) in zip(axes, pairs):
+            ax.plot(res[x], res[y], lw=1.5, label=tag + ("" if res.completed else " (stopped)"))
+    for ax, (x, y) in zip(axes, pairs):
+        ax.set_xlabel(x)
+        ax.set_ylabel(y)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    return path

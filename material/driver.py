@@ -661,16 +661,25 @@ def oedometer(model_or_params, p0_kPa: float = 10.0, alpha_deg: float = 0.0, axi
 
 def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 0.0, shear_strain: float = 0.2,
                  steps: int = 300, constant_height: bool = False, k0: float | None = None, *,
-                 lateral: str = "stress", rule: str | None = None, **engine) -> ElementResult:
+                 lateral: str = "band", rule: str | None = None, **engine) -> ElementResult:
     """Simple shear in the x-z plane of a layer with normal z: engineering shear strain gamma = 2 eps_xz.
 
     Initial effective stress: sigma_zz = -sigma_n and lateral sigma_xx = sigma_yy = -k0 sigma_n
     (``k0=None``: isotropic, k0 = 1). During shear: eps_xz prescribed (gamma from 0 to
     ``shear_strain``); the normal stress is held (``constant_height=False``) or the normal strain
     (``constant_height=True``: eps_zz fixed, the normal stress changes — the constant-volume,
-    "undrained-like" variant of laboratory simple shear); ``lateral="stress"`` holds sigma_xx,
-    sigma_yy at their initial values and sigma_xy = sigma_yz = 0, ``lateral="strain"`` holds
-    eps_xx = eps_yy = eps_xy = eps_yz = 0 (a rigid ring). alpha: angle between the layer normal z and e2.
+    "undrained-like" variant of laboratory simple shear). Lateral conditions:
+
+    * ``lateral="band"`` (default): the kinematics of a shear band with normal z, eps = sym(g x n)/t,
+      i.e. eps_xx = eps_yy = eps_xy = 0 (rigid box walls / ring) and sigma_yz = 0 (eps_yz free, non-zero
+      only for asymmetric fabrics); sigma_xx, sigma_yy evolve. With this choice the peak ratio
+      tau/sigma_n approaches eta_f of the planes parallel to the layer, i.e. the direct-shear friction
+      coefficient eta_f(alpha) of MODEL.md.
+    * ``lateral="stress"``: sigma_xx, sigma_yy held at their initial values and sigma_xy = sigma_yz = 0
+      (all lateral strains free). The Mohr circle then grows about a fixed centre and the peak
+      tau/sigma_n stays well below eta_f (about 0.6 for ottawa_c109).
+
+    alpha: angle between the layer normal z and e2.
 
     Columns: ``gamma`` (2 eps_xz), ``tau_kPa`` = sigma_xz (shear stress on the layer, + with gamma),
     ``sigma_n_kPa`` = -sigma_zz (compression +), ``tau_over_sigma_n``, ``eps_n`` = eps_zz (dilation +).
@@ -680,8 +689,8 @@ def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
     if not math.isfinite(gamma) or gamma == 0:
         raise ValueError(f"shear_strain = {shear_strain!r}: must be a finite non-zero engineering shear strain")
     steps = _check_steps(steps)
-    if lateral not in ("stress", "strain"):
-        raise ValueError(f"lateral = {lateral!r}; allowed: 'stress', 'strain'")
+    if lateral not in ("band", "stress"):
+        raise ValueError(f"lateral = {lateral!r}; allowed: 'band', 'stress'")
     kk = 1.0 if k0 is None else _check_positive("k0", k0)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-sn * np.diag([kk, kk, 1.0]))
@@ -690,7 +699,7 @@ def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
     if lateral == "stress":
         comps.update(sig_xx=-kk * sn, sig_yy=-kk * sn, sig_xy=0.0, sig_yz=0.0)
     else:
-        comps.update(eps_xx=0.0, eps_yy=0.0, eps_xy=0.0, eps_yz=0.0)
+        comps.update(eps_xx=0.0, eps_yy=0.0, eps_xy=0.0, sig_yz=0.0)
     path.add(steps, name="simple shear", **comps)
     res = run_path(model, path, **engine)
     res.add_column("gamma", 2.0 * res.strain[:, 0, 2], "engineering shear strain 2 eps_xz [-]")
@@ -706,15 +715,15 @@ def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
 
 def direct_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 0.0,
                  shear_displacement: float = 0.006, steps: int = 300, *, band_thickness_m: float | None = None,
-                 k0: float | None = None, lateral: str = "stress", rule: str | None = None,
+                 k0: float | None = None, lateral: str = "band", rule: str | None = None,
                  **engine) -> ElementResult:
     """Direct shear as simple shear of a band of thickness t under constant normal stress.
 
     gamma = shear_displacement / t with t = params.t for the CPA law (or ``band_thickness_m``,
     default 0.006 m, for other laws). The band normal is z, the shear direction x; alpha is the angle
     between the shear-plane normal and e2 (``axes_from_alpha(alpha_deg)``). Initial state and the
-    other stresses as in :func:`simple_shear` (default: isotropic -sigma_n I; lateral normal stresses
-    held at -sigma_n, sigma_xy = sigma_yz = 0).
+    lateral conditions as in :func:`simple_shear` (default: isotropic start -sigma_n I, then the band
+    kinematics eps_xx = eps_yy = eps_xy = 0, sigma_yz = 0, sigma_zz = -sigma_n held).
 
     Columns (besides those of :func:`simple_shear`): ``shear_displacement_m`` = gamma t,
     ``normal_displacement_m`` = eps_zz t (dilation +).
@@ -747,7 +756,7 @@ def cyclic_simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: f
                         constant_height: bool = False, *, rule: str | None = None, **engine) -> ElementResult:
     """Strain-controlled cyclic simple shear, gamma: 0 -> +a -> -a -> ... -> 0, ``cycles`` full cycles.
 
-    Same boundary conditions as :func:`simple_shear` (isotropic start, lateral stresses held);
+    Same boundary conditions as :func:`simple_shear` (isotropic start, band kinematics);
     ``constant_height=True`` holds eps_zz (the normal stress then evolves, e.g. decreases).
     """
     sn = _check_positive("sigma_n_kPa", sigma_n_kPa)
@@ -757,7 +766,7 @@ def cyclic_simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: f
     nq = _check_steps(steps_per_quarter)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-sn * np.eye(3))
-    base = {"sig_xx": -sn, "sig_yy": -sn, "sig_xy": 0.0, "sig_yz": 0.0}
+    base = {"eps_xx": 0.0, "eps_yy": 0.0, "eps_xy": 0.0, "sig_yz": 0.0}
     base.update({"eps_zz": 0.0} if constant_height else {"sig_zz": -sn})
     targets = [amp] + [-amp, amp] * cycles
     targets[-1] = 0.0
