@@ -85,8 +85,10 @@ class CPAParameters:
         for key in ("a", "b"):
             value = getattr(self, key)
             try:
+                if isinstance(value, (str, bytes)):
+                    raise TypeError(key)  # a string would be split into digits
                 coeffs = tuple(float(v) for v in value)
-            except TypeError:
+            except (TypeError, ValueError):
                 raise ValueError(
                     f"parameter {key!r} = {value!r}: expected a sequence of numbers (a1, a2, ...)"
                 ) from None
