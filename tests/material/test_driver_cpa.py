@@ -1,0 +1,159 @@
+"""Element tests of the CPA law through material.driver: the trends the thesis states (CASES.md section 1)."""
+
+import numpy as np
+import pytest
+
+from material import driver, load_preset
+from material.anisotropy import axes_from_alpha, friction_coefficient
+from material.failure import triaxial_strength
+from material.plasticity import VonMises
+
+
+@pytest.fixture(scope="module")
+def c109():
+    return load_preset("ottawa_c109")
+
+
+@pytest.fixture(scope="module")
+def triaxials(c109):
+    """Drained triaxial compression, Figs. 20-21: p0 = 50, 100 kPa, alpha = 0, 90."""
+    return {(p0, a): driver.triaxial(c109, p0_kPa=p0, alpha_deg=a, axial_strain=0.15, steps=300)
+            for p0 in (50.0, 100.0) for a in (0.0, 90.0)}
+
+
+def _at(res, x_col, x, y_col):
+    return float(np.interp(x, res[x_col], res[y_col]))
+
+
+@pytest.mark.parametrize("p0", [50.0, 100.0])
+def test_triaxial_alpha0_stiffer_and_stronger(triaxials, p0):
+    v, h = triaxials[(p0, 0.0)], triaxials[(p0, 90.0)]
+    assert v.completed and h.completed
+    assert v["q_kPa"].max() > 1.25 * h["q_kPa"].max()  # much stronger (Figs. 11-12, 20-21)
+    assert _at(v, "eps_a", 0.05, "q_kPa") > _at(h, "eps_a", 0.05, "q_kPa")  # stiffer before the peak
+
+
+@pytest.mark.parametrize("p0", [50.0, 100.0])
+@pytest.mark.parametrize("alpha", [0.0, 90.0])
+def test_triaxial_compaction_then_dilation(triaxials, p0, alpha):
+    res = triaxials[(p0, alpha)]
+    ev = res["eps_v"]
+    i = int(np.argmax(ev))
+    assert ev[i] > 0.005  # compaction first
+    assert 0 < i < len(ev) - 1
+    assert ev[-1] < ev[i] - 0.01  # then dilation
+
+
+@pytest.mark.parametrize("alpha", [0.0, 90.0])
+def test_triaxial_dilation_decreases_with_confinement(triaxials, alpha):
+    assert triaxials[(100.0, alpha)]["eps_v"][-1] > triaxials[(50.0, alpha)]["eps_v"][-1]
+
+
+def test_triaxial_stress_controlled_components_hold(triaxials):
+    for (p0, _), res in triaxials.items():
+        scale = np.abs(res.stress).max()
+        assert np.abs(res["sig_xx_kPa"] + p0).max() < 1e-8 * scale
+        assert np.abs(res["sig_yy_kPa"] + p0).max() < 1e-8 * scale
+        for c in ("sig_yz_kPa", "sig_xz_kPa", "sig_xy_kPa"):
+            assert np.abs(res[c]).max() < 1e-8 * scale
+
+
+def test_inclined_sample_develops_shear_strain(c109):
+    res = driver.triaxial(c109, p0_kPa=100.0, alpha_deg=45.0, axial_strain=0.05, steps=100)
+    scale = np.abs(res.stress).max()
+    assert abs(res["eps_xz"][-1]) > 5e-4  # the sample distorts (thesis 2.2.2) ...
+    assert np.abs(res["sig_xz_kPa"]).max() < 1e-8 * scale  # ... because the shear stress, not the strain, is held
+    vert = driver.triaxial(c109, p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.05, steps=100)
+    assert abs(vert["eps_xz"][-1]) < 1e-10
+
+
+@pytest.mark.parametrize("alpha", [0.0, 90.0])
+def test_triaxial_peak_approaches_analytic_strength(c109, alpha):
+    """Peak of a long drained test vs the continuous critical-plane strength; finer rules get closer."""
+    qf = triaxial_strength(c109, 100.0, alpha)
+    err = {}
+    for rule in ("lebedev-26", "bazant-oh-33", "lebedev-110"):
+        res = driver.triaxial(c109, p0_kPa=100.0, alpha_deg=alpha, axial_strain=0.5, steps=300, rule=rule,
+                              on_failure="return")
+        err[rule] = abs(res["q_kPa"].max() / qf - 1.0)
+    assert err["bazant-oh-33"] < 0.05
+    assert err["lebedev-110"] < 0.01
+    assert err["lebedev-110"] < err["bazant-oh-33"] < err["lebedev-26"]
+
+
+def test_large_increments_match_fine_steps(c109):
+    fine = driver.triaxial(c109, p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.15, steps=1000)
+    coarse = driver.triaxial(c109, p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.15, steps=10)
+    assert coarse.completed
+    assert coarse["q_kPa"][-1] == pytest.approx(fine["q_kPa"][-1], rel=0.01)
+    assert coarse["p_kPa"][-1] == pytest.approx(fine["p_kPa"][-1], rel=0.01)
+    # volumetric strain is path-integrated: 10 steps of 1.5 % are within 0.01 absolute, not 1 %
+    assert abs(coarse["eps_v"][-1] - fine["eps_v"][-1]) < 0.01
+
+
+def test_undrained_triaxial_constant_volume(c109):
+    res = driver.triaxial(c109, p0_kPa=100.0, axial_strain=0.05, steps=100, drained=False)
+    assert np.abs(res["eps_v"]).max() < 1e-12
+    u = res["u_kPa"]
+    assert u.max() > 1.0  # contractive start: pore pressure rises ...
+    assert u[-1] < u.max() - 1.0  # ... then falls as the sand dilates
+    total = res["sig_xx_kPa"] - res["u_kPa"]
+    assert np.abs(total + 100.0).max() < 1e-8 * np.abs(res.stress).max()
+
+
+def test_direct_shear_friction_and_dilation(c109):
+    runs = {a: driver.direct_shear(c109, sigma_n_kPa=50.0, alpha_deg=a, steps=600, on_failure="return")
+            for a in (0.0, 45.0, 90.0)}
+    # alpha = 0: the planes parallel to the band are the weakest, the peak ratio reaches eta_f(0)
+    eta0 = friction_coefficient(c109, np.array([[0.0, 0.0, 1.0]]), axes_from_alpha(0.0))[0]
+    assert runs[0.0]["tau_over_sigma_n"].max() == pytest.approx(eta0, rel=0.01)
+    # dilation grows with alpha (thesis 2.2.1): normal displacement at 0.5 mm of shear
+    dn = {a: _at(r, "shear_displacement_m", 5e-4, "normal_displacement_m") for a, r in runs.items()}
+    assert dn[90.0] > dn[0.0] + 1e-5 and dn[45.0] > dn[0.0] + 1e-5
+    for r in runs.values():
+        assert r["normal_displacement_m"].min() < 0  # compaction before dilation
+        assert np.abs(r["sig_zz_kPa"] + 50.0).max() < 1e-8 * np.abs(r.stress).max()
+
+
+@pytest.fixture(scope="module")
+def rotations():
+    base = load_preset("ottawa_c109_induced")
+    return {(beta, dpsi): driver.rotation(base.replace(beta=beta), p0_kPa=14.0, delta_psi_deg=dpsi)
+            for beta in (0.1, 5.0, 10.0) for dpsi in (0.0, 90.0)}
+
+
+def test_rotation_dpsi0_stiffer(rotations):
+    for beta in (0.1, 5.0, 10.0):
+        r0, r90 = rotations[(beta, 0.0)], rotations[(beta, 90.0)]
+        assert r0.completed and r90.completed
+        m0, m90 = r0["stage"] == 2, r90["stage"] == 2
+        q0 = np.interp(0.005, r0["eps_1r"][m0], r0["q_kPa"][m0])
+        q90 = np.interp(0.005, r90["eps_1r"][m90], r90["q_kPa"][m90])
+        assert q0 > 1.1 * q90  # Fig. 45: dpsi = 0 stiffer after the pre-shear
+
+
+def test_rotation_strength_difference_grows_with_beta(rotations):
+    diff = [rotations[(b, 0.0)]["q_kPa"].max() - rotations[(b, 90.0)]["q_kPa"].max() for b in (0.1, 5.0, 10.0)]
+    assert diff[0] >= 0
+    assert diff[0] < diff[1] < diff[2]  # Fig. 45: more difference in strength with larger beta
+
+
+def test_rotation_stress_components_hold(rotations):
+    res = rotations[(5.0, 90.0)]
+    scale = np.abs(res.stress).max()
+    reshear = res["stage"] == 2
+    # in the rotated frame (90 deg): x' = y, so sigma_y'y' = sigma_xx = -14 and sigma_x'y' = -sigma_xy = 0
+    assert np.abs(res["sig_xx_kPa"][reshear] + 14.0).max() < 1e-8 * scale
+    assert np.abs(res["sig_xy_kPa"][reshear]).max() < 1e-8 * scale
+    assert np.abs(res["eps_zz"]).max() < 1e-12  # plane strain
+
+
+def test_von_mises_yields_at_sigma_y():
+    vm = VonMises(6000.0, 0.3, 30.0)
+    res = driver.triaxial(vm, p0_kPa=100.0, axial_strain=0.02, steps=40)
+    assert res["q_kPa"].max() == pytest.approx(30.0, rel=1e-9)
+    assert res["q_kPa"][-1] == pytest.approx(30.0, rel=1e-9)
+    yielded = res["q_kPa"] > 30.0 * (1 - 1e-9)
+    assert np.ptp(res["eps_v"][yielded]) < 1e-12  # isochoric J2 flow
+    ds = driver.direct_shear(vm, sigma_n_kPa=100.0, shear_displacement=0.0012, steps=40, band_thickness_m=0.006)
+    assert ds["tau_kPa"].max() == pytest.approx(30.0 / np.sqrt(3.0), rel=1e-9)
