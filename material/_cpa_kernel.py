@@ -102,7 +102,7 @@ def _plane_strengths(eps6, normals6, om6, coeffs, eta0, beta, eta_f, deta_f):
 
 @njit(cache=True)
 def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
-              comp, barrier, want_jac, r, J, active, dkap, work):
+              comp, barrier, want_jac, r, J, active, dkap, work, tmp):
     """Residual R (and Jacobian J) at sig; returns (feasible, |R|).
 
     ``work`` (M, 8) receives per plane: sigma_N, tau, etah, q = tau/(sigma_N+sigma0), dil, kappa',
@@ -123,8 +123,10 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
     for i in range(6):
         smax = max(smax, abs(sig[i]))
     tau_tiny = 1e-13 * (smax + 1e-300)
-    sn6 = np.empty(6)
-    mn6 = np.empty(6)
+    sn6 = tmp[0]
+    mn6 = tmp[1]
+    v1 = tmp[2]
+    v2 = tmp[3]
     for a in range(M):
         n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
         t0, t1, t2 = _traction(sig, n0, n1, n2)
@@ -179,14 +181,18 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
             _sym_mandel(mn6, m0, m1, m2, n0, n1, n2)
             inv_sn = 1.0 / sigma_N
             inv_sq = 1.0 / (sigma_N + sig0)
+            for j in range(6):
+                v1[j] = sn6[j] + etah * nn6[a, j]  # sigma_N d etah / d sigma
+                v2[j] = sn6[j] + q * nn6[a, j]     # (sigma_N + sigma0) dq / d sigma
+            cg = wt * kprime * inv_sn
+            ch = wt * dk * inv_sq
+            cm = wt * dk / tau
             for i in range(6):
-                gi = wt * (sn6[i] - dil * nn6[a, i]) * kprime * inv_sn
-                hi = wt * dk * nn6[a, i] * inv_sq
-                mi = wt * dk * mn6[i] / tau
+                gi = cg * (sn6[i] - dil * nn6[a, i])
+                hi = ch * nn6[a, i]
+                mi = cm * mn6[i]
                 for j in range(6):
-                    J[i, j] += (gi * (sn6[j] + etah * nn6[a, j])
-                                + hi * (sn6[j] + q * nn6[a, j])
-                                + mi * mn6[j])
+                    J[i, j] += gi * v1[j] + hi * v2[j] + mi * mn6[j]
     rn = 0.0
     for i in range(6):
         rn += r[i] * r[i]
@@ -261,7 +267,7 @@ def _is_strictly_compressive(sig, normals):
 
 @njit(cache=True)
 def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial):
+                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp):
     """Newton with line search for one (sub)step; sig receives the solution. Returns (ok, iterations).
 
     On return with ok, J holds the LU factors of the Jacobian at the solution and active/dkap/work
@@ -274,8 +280,9 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
         for j in range(6):
             acc += stiff[i, j] * de[j]
         trial[i] = acc
+    # residual only: most plastic points leave the trial stress at once, so its Jacobian would be wasted
     feas, rn = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
-                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+                         eta_c_ratio, comp, barrier, False, r, J, active, dkap, work, tmp)
     if feas:
         any_active = False
         for a in range(M):
@@ -285,6 +292,8 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
         if not any_active:
             for i in range(6):
                 sig[i] = trial[i]
+                for j in range(6):
+                    J[i, j] = comp[i, j]
             ok = _lu_factor(J, piv)
             return ok, 0
     # plastic: start from the converged stress of the previous step (feasible by construction), or from
@@ -303,7 +312,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
         de_norm += de[i] * de[i]
     de_norm = np.sqrt(de_norm)
     feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
-                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
     if not feas:
         return False, 0
     for it in range(1, maxit + 1):
@@ -319,7 +328,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
             for i in range(6):
                 trial[i] = sig[i] + alpha * delta[i]
             feas, rn_new = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A,
-                                     inv_t, eta_c_ratio, comp, barrier, True, r, J, active, dkap, work)
+                                     inv_t, eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
             if feas and rn_new <= (1.0 - 1e-4 * alpha) * rn:
                 accepted = True
                 break
@@ -338,7 +347,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
 @njit(cache=True)
 def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A,
                   inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
-                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new):
+                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats):
     """One Gauss point: adaptive sub-stepping around :func:`_solve_substep`, chain-rule tangent.
 
     Returns (status, substeps, iterations, cutoff).
@@ -355,19 +364,20 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     kap = bufs_f[3, :M]
     work = bufs_f[4:12, :M].T  # (M, 8) view
     active = bufs_b[:M]
-    sig = np.empty(6)
-    sig_prev = np.empty(6)
-    de_k = np.empty(6)
-    eps_k = np.empty(6)
-    r = np.empty(6)
-    delta = np.empty(6)
-    trial = np.empty(6)
-    J = np.empty((6, 6))
-    B = np.empty((6, 6))
-    Dsig = np.empty((6, 6))
-    col = np.empty(6)
-    sn6 = np.empty(6)
-    dev_nn = np.empty(6)
+    sig = vecs[0]
+    sig_prev = vecs[1]
+    de_k = vecs[2]
+    eps_k = vecs[3]
+    r = vecs[4]
+    delta = vecs[5]
+    trial = vecs[6]
+    col = vecs[7]
+    sn6 = vecs[8]
+    dev_nn = vecs[9]
+    tmp = vecs[10:14]
+    J = mats[0]
+    B = mats[1]
+    Dsig = mats[2]
     total_it = 0
     # tension cut-off (MODEL.md "Tension"): when the elastic trial stress has no compression left
     # (mean stress >= 0) no stress state of the cone can follow the increment: the point goes to the
@@ -411,7 +421,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             _plane_strengths(eps_k, nn6, om6, coeffs, eta0, beta, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                      eta_c_ratio, comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work,
-                                     r, piv, delta, trial)
+                                     r, piv, delta, trial, tmp)
             total_it += its
             if not ok:
                 failed = True
@@ -540,6 +550,7 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
     N = sig_n.shape[0]
     M = normals.shape[0]
     nchunk = min(N, 64)
+    block = (N + nchunk - 1) // max(nchunk, 1)
     for c in prange(nchunk):
         bufs_f = np.empty((12, M))
         bufs_b = np.zeros(M, dtype=np.bool_)
@@ -547,11 +558,13 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
         Dk = np.empty((M, 6))
         Dk_new = np.empty((M, 6))
         eps_end = np.empty(6)
-        for p in range(c, N, nchunk):
+        vecs = np.empty((14, 6))
+        mats = np.empty((3, 6, 6))
+        for p in range(c * block, min(N, (c + 1) * block)):
             st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,
                                             om6, coeffs, eta0, beta, zeta, A, inv_t, eta_c_ratio, comp, stiff,
                                             iopt, fopt, sig_out[p], kap_out[p], D_out[p], bufs_f, bufs_b, piv,
-                                            Dk, Dk_new)
+                                            Dk, Dk_new, vecs, mats)
             status[p] = st
             substeps[p] = m
             iterations[p] = its

@@ -1,0 +1,84 @@
+"""Speed of the CPA Gauss-point update (issue: >= 300,000 updates/s per core with the tangent).
+
+100,000 Gauss points are brought to a hardening state (a drained-triaxial-like strain path at
+p0 = 100 kPa, spread over the points so that mobilisation varies from ~0.2 to ~0.8), then one more
+strain increment is integrated: with the consistent tangent on 1 and 2 threads, and without the
+tangent. Baseline in the same process: the linear-elastic update of material.LinearElastic.
+
+    python benchmarks/material_update.py [--points 100000] [--repeat 3] [--rule bazant-oh-33]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numba
+import numpy as np
+
+from material import CPAModel, LinearElastic, load_preset
+from material.anisotropy import axes_from_alpha
+
+
+def _hardening_state(model, n, rng):
+    sig = np.repeat(-100.0 * np.eye(3)[None], n, axis=0)
+    state = model.initial_state(n, stress=sig)
+    base = np.array([[0.8e-3, 1e-4, 2e-4], [1e-4, 0.6e-3, -1.5e-4], [2e-4, -1.5e-4, -2e-3]])
+    scale = rng.uniform(0.5, 2.0, size=n)[:, None, None]
+    de = base[None] * scale
+    for _ in range(6):
+        sig, state, _ = model.update(de, sig, state, tangent=False)
+    return sig, state, de
+
+
+def _best(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--points", type=int, default=100_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--rule", default="bazant-oh-33")
+    args = ap.parse_args(argv)
+    n = args.points
+    rng = np.random.default_rng(0)
+    model = CPAModel(load_preset("ottawa_c109"), rule=args.rule, axes=axes_from_alpha(30.0))
+    sig, state, de = _hardening_state(model, n, rng)
+    mob = state["mobilised_ratio"]
+    print(f"CPA update, {n} points, rule {args.rule} ({model.n_planes} planes); mobilised ratio "
+          f"{mob.min():.2f}..{mob.max():.2f} (median {np.median(mob):.2f})")
+    model.update(de[:10], sig[:10], {k: v[:10] for k, v in state.items()})  # compile
+    max_threads = numba.config.NUMBA_NUM_THREADS
+    results = {}
+    for threads in sorted({1, min(2, max_threads)}):
+        numba.set_num_threads(threads)
+        t = _best(lambda: model.update(de, sig, state), args.repeat)
+        results[("tangent", threads)] = t
+        t = _best(lambda: model.update(de, sig, state, tangent=False), args.repeat)
+        results[("no tangent", threads)] = t
+    numba.set_num_threads(max_threads)
+    _, st1, _ = model.update(de, sig, state)
+    its = st1["iterations"]
+    print(f"Newton iterations per point: mean {its.mean():.2f}, max {its.max()}; "
+          f"sub-stepped points: {(st1['substeps'] > 1).sum()}")
+    elastic = LinearElastic(6000.0, 0.33)
+    est = elastic.initial_state(n)
+    t_el = _best(lambda: elastic.update(de, sig, est), args.repeat)
+    print(f"{'variant':<28}{'time [s]':>10}{'updates/s':>14}{'per thread':>14}")
+    for (kind, threads), t in results.items():
+        print(f"{kind + f', {threads} thread(s)':<28}{t:>10.3f}{n / t:>14,.0f}{n / t / threads:>14,.0f}")
+    print(f"{'baseline LinearElastic':<28}{t_el:>10.3f}{n / t_el:>14,.0f}")
+    t1 = results[("tangent", 1)]
+    print(f"ratio CPA(tangent, 1 thread) / LinearElastic: {t1 / t_el:.1f}x the time")
+    print(f"target >= 300,000 updates/s per core with tangent: {n / t1:,.0f} on 1 thread "
+          f"({'met' if n / t1 >= 3e5 else 'NOT met'})")
+
+
+if __name__ == "__main__":
+    main()
