@@ -188,20 +188,40 @@ def critical_plane(
 
 
 def strength_along_path(
-    params: CPAParameters, stress0, direction, axes=None, *, strain=None, q_max: float = 1e7, xtol: float = 1e-10
+    params: CPAParameters,
+    stress0,
+    direction,
+    axes=None,
+    *,
+    strain=None,
+    rule: str | None = None,
+    q_max: float = 1e7,
+    xtol: float = 1e-10,
 ) -> float:
     """The load factor q >= 0 at which sigma = stress0 + q direction reaches max_n F = 0 (eq. 2.5).
 
-    ``stress0`` must be safe (max F < 0) and the path must eventually fail below ``q_max``;
-    otherwise ``ValueError``. The bracket grows geometrically, then ``brentq`` finds the root to a
-    relative tolerance ``xtol``.
+    ``rule=None`` maximises F over the continuous sphere (the model's strength envelope); a rule name
+    of :func:`material.planes.available_rules` maximises over that rule's planes only, attached to the
+    material frame (n_a = R n_a^ref) -- the strength limit of the discretised model with zeta = 1,
+    which is never below the continuous one. ``stress0`` must be safe (max F < 0) and the path must
+    fail below ``q_max``; otherwise ``ValueError``. The bracket grows geometrically, then ``brentq``
+    finds the root to a relative tolerance ``xtol``.
     """
     s0 = _check_stress(stress0)
     d = _check_stress(direction)
     R = default_axes() if axes is None else axes_from_frame(axes)
+    if rule is None:
 
-    def g(q: float) -> float:
-        return _maximise(s0 + q * d, params, R, strain, 2000, 4)[0]
+        def g(q: float) -> float:
+            return _maximise(s0 + q * d, params, R, strain, 2000, 4)[0]
+
+    else:
+        from material.planes import integration_rule, rotate_normals
+
+        planes = rotate_normals(integration_rule(rule)[0], R)
+
+        def g(q: float) -> float:
+            return float(failure_function(s0 + q * d, params, planes, R, strain).max())
 
     g0 = g(0.0)
     if g0 >= 0.0:
@@ -220,7 +240,8 @@ def triaxial_strength(params: CPAParameters, p0_kPa: float, alpha_deg: float, **
 
     sigma = -diag(p0, p0, p0 + q) (tension +; major compression along global z), material axes
     ``axes_from_alpha(alpha_deg)`` (alpha: angle between the loading axis and the deposition axis e2);
-    q_f solves max_n F = 0 over the continuous sphere (eqs. 2.3-2.5).
+    q_f solves max_n F = 0 over the continuous sphere (eqs. 2.3-2.5), or over the planes of
+    ``rule=...`` only (see :func:`strength_along_path`).
     """
     p0 = float(p0_kPa)
     if not (np.isfinite(p0) and p0 >= 0.0):
@@ -231,10 +252,11 @@ def triaxial_strength(params: CPAParameters, p0_kPa: float, alpha_deg: float, **
     return strength_along_path(params, -p0 * np.eye(3), -np.diag([0.0, 0.0, 1.0]), axes, **kwargs)
 
 
-def strength_envelope(params: CPAParameters, p0_kPa: float, alphas_deg) -> np.ndarray:
-    """q_f [kPa] of :func:`triaxial_strength` for each deposition angle in ``alphas_deg`` (degrees)."""
+def strength_envelope(params: CPAParameters, p0_kPa: float, alphas_deg, **kwargs) -> np.ndarray:
+    """q_f [kPa] of :func:`triaxial_strength` for each deposition angle in ``alphas_deg`` (degrees);
+    keyword arguments (e.g. ``rule=``) are passed on."""
     alphas = np.atleast_1d(np.asarray(alphas_deg, dtype=float))
-    return np.array([triaxial_strength(params, p0_kPa, a) for a in alphas])
+    return np.array([triaxial_strength(params, p0_kPa, a, **kwargs) for a in alphas])
 
 
 def direct_shear_friction(params: CPAParameters, alpha_deg) -> np.ndarray:
