@@ -1,0 +1,406 @@
+"""Incremental Newton-Raphson solver for small-strain elastoplastic boundary-value problems.
+
+The algorithm (one load step from load factor t_n to t_{n+1} = t_n + dt):
+
+1. Displacement increment du: prescribed DOFs get u_D(t_{n+1}) - u_n, the others start at zero.
+2. Newton iteration k: strain increment d_eps = B du at every quadrature point; ONE material call
+   ``update(d_eps, sigma_n, state_n)`` from the committed start-of-step state gives sigma, the state and
+   the consistent tangent D; residual r = f_int(sigma) - f_ext(t_{n+1}) on the free DOFs.
+3. Converged when |r_free| <= tol * max(|f_ext|, |reaction|, force_floor) (the reaction is the internal
+   force on the prescribed DOFs). Otherwise solve K_ff ddu = -r_free with K = sum B^T D B (numba kernel,
+   :mod:`femgran.assembly`), and update du <- du + s ddu where s = 1, 1/2, 1/4, ... is the first step of a
+   backtracking line search on |r| (full Newton steps are kept whenever they reduce the residual).
+4. On convergence the trial state is committed (:class:`femgran.state.PointState`), the step is
+   recorded (history row, output files) and dt grows by ``grow`` (up to ``dt_max``) after an easy step.
+   On failure (material STATUS_FAILED points, too many iterations, a residual that is not finite or
+   explodes) the state is reverted and dt is cut by the points' suggested step ratio (at most 1/2).
+   After ``max_cuts`` successive cuts, or dt < dt_min, the run stops cleanly: every converged step is
+   already saved and the returned :class:`Solution` says why it stopped.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from femgran.state import PointState
+
+__all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", "linear_solve", "LINEAR_SOLVERS"]
+
+LINEAR_SOLVERS = ("superlu", "amg-gmres", "ilu-gmres")
+
+
+@dataclass
+class Dirichlet:
+    """Prescribed displacement on a set of vector DOFs.
+
+    u[dofs] = values * t if ``ramp`` (t the load factor, 0 -> t_end) else ``values`` (constant).
+    A ``name`` adds the columns ``<name>_displacement`` (mean prescribed value, m) and
+    ``<name>_reaction`` (sum of the reaction forces on these DOFs, kN, or kN/m in plane strain) to
+    the history.
+    """
+
+    dofs: np.ndarray
+    values: float | np.ndarray = 0.0
+    ramp: bool = True
+    name: str | None = None
+
+    def __post_init__(self):
+        self.dofs = np.asarray(self.dofs, dtype=np.int64).ravel()
+        if self.dofs.size == 0:
+            raise ValueError(f"Dirichlet condition {self.name or ''!s}: names no nodes (empty DOF set)")
+        v = np.asarray(self.values, dtype=float)
+        if v.ndim and v.shape != self.dofs.shape:
+            raise ValueError(f"Dirichlet {self.name}: values shape {v.shape} != dofs shape {self.dofs.shape}")
+        self.values = np.broadcast_to(v, self.dofs.shape).copy()
+
+    def at(self, t: float) -> np.ndarray:
+        return self.values * t if self.ramp else self.values
+
+
+@dataclass
+class SolverOptions:
+    """Newton, step-control and linear-solver settings.
+
+    tol : relative residual tolerance (free-DOF force norm / reference force norm).
+    force_floor : smallest reference force norm [kN] (guards zero-load states).
+    max_iter : Newton iterations per try; max_cuts : successive cut-backs before a clean stop.
+    dt_min : smallest load-factor step; grow : dt factor after a step that took <= easy_iter iterations.
+    line_search : backtracking steps (0 disables).
+    linear_solver : "superlu" (direct), "amg-gmres" (pyamg smoothed aggregation preconditioning GMRES)
+    or "ilu-gmres"; krylov_tol : relative tolerance of the Krylov solvers.
+    """
+
+    tol: float = 1e-8
+    force_floor: float = 1e-10
+    max_iter: int = 25
+    max_cuts: int = 8
+    dt_min: float = 1e-7
+    grow: float = 1.5
+    easy_iter: int = 6
+    line_search: int = 4
+    linear_solver: str = "superlu"
+    krylov_tol: float = 1e-10
+
+    def __post_init__(self):
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"linear_solver = {self.linear_solver!r}: allowed {LINEAR_SOLVERS}")
+        if not (0 < self.tol < 1):
+            raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
+        if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
+            raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: need max_iter >= 1, max_cuts >= 0")
+
+
+class History:
+    """Table of global quantities, one row per converged step (columns -> numpy arrays)."""
+
+    def __init__(self):
+        self._rows: list[dict] = []
+
+    def append(self, row: dict) -> None:
+        self._rows.append(dict(row))
+
+    @property
+    def columns(self) -> list[str]:
+        cols: list[str] = []
+        for r in self._rows:
+            cols += [k for k in r if k not in cols]
+        return cols
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self.columns:
+            raise KeyError(f"history column {name!r}: not found; available {self.columns}")
+        return np.array([r.get(name, np.nan) for r in self._rows], dtype=float)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def __repr__(self) -> str:
+        return f"History({len(self)} steps, columns={self.columns})"
+
+    def to_csv(self, path) -> None:
+        cols = self.columns
+        with open(path, "w") as f:
+            f.write(",".join(cols) + "\n")
+            for r in self._rows:
+                f.write(",".join(repr(float(r.get(c, np.nan))) for c in cols) + "\n")
+
+
+@dataclass
+class Solution:
+    """Result of :meth:`NewtonSolver.run`.
+
+    u : (ndofs,) displacement [m]; stress : (N, 3, 3) [kPa]; state : material state dict;
+    history : :class:`History`; completed : whether t_end was reached; stop_reason : text;
+    out_dir : run folder (or None); residuals : per converged step, the Newton residual sequence.
+    """
+
+    u: np.ndarray
+    stress: np.ndarray
+    state: dict
+    history: History
+    completed: bool
+    stop_reason: str
+    out_dir: object = None
+    residuals: list = field(default_factory=list)
+    extra: dict = field(default_factory=dict)
+
+    def __getattr__(self, name):
+        extra = self.__dict__.get("extra", {})
+        if name in extra:
+            return extra[name]
+        raise AttributeError(name)
+
+
+def linear_solve(K: sp.spmatrix, b: np.ndarray, method: str = "superlu", tol: float = 1e-10,
+                 near_nullspace: np.ndarray | None = None) -> np.ndarray:
+    """Solve K x = b (K square, possibly non-symmetric) with ``method`` in :data:`LINEAR_SOLVERS`."""
+    if method == "superlu":
+        return spla.spsolve(K.tocsc(), b, permc_spec="COLAMD")
+    if method in ("amg-gmres", "ilu-gmres"):
+        if method == "amg-gmres":
+            import pyamg
+
+            ml = pyamg.smoothed_aggregation_solver(K.tocsr(), B=near_nullspace, symmetry="nonsymmetric")
+            M = ml.aspreconditioner()
+        else:
+            ilu = spla.spilu(K.tocsc(), drop_tol=1e-5, fill_factor=10)
+            M = spla.LinearOperator(K.shape, ilu.solve)
+        x, info = spla.gmres(K, b, M=M, rtol=tol, restart=60, maxiter=20)
+        if info != 0 or not np.all(np.isfinite(x)):
+            return spla.spsolve(K.tocsc(), b, permc_spec="COLAMD")  # fall back to the direct solver
+        return x
+    raise ValueError(f"linear solver {method!r}: allowed {LINEAR_SOLVERS}")
+
+
+class _StepFailure(Exception):
+    def __init__(self, reason: str, ratio: float = 0.5):
+        super().__init__(reason)
+        self.reason, self.ratio = reason, ratio
+
+
+class NewtonSolver:
+    """Incremental Newton solver (see the module docstring for the algorithm).
+
+    Parameters
+    ----------
+    disc : femgran.assembly.Discretisation
+    material : object with ``initial_state(n, stress=...)`` and ``update(d_strain, stress, state)``
+    dirichlet : list of :class:`Dirichlet`
+    f_fixed : (ndofs,) external force applied in full from t = 0 (self weight, cell pressure) [kN]
+    f_ramp : (ndofs,) external force scaled by the load factor t [kN]
+    initial_stress : None, (3, 3) or (N, 3, 3) in-situ stress [kPa], tension positive
+    options : :class:`SolverOptions`
+    """
+
+    def __init__(self, disc, material, dirichlet, *, f_fixed=None, f_ramp=None, initial_stress=None,
+                 options: SolverOptions | None = None):
+        check_material(material)
+        self.disc = disc
+        self.material = material
+        self.dirichlet = list(dirichlet)
+        self.options = options or SolverOptions()
+        n = disc.ndofs
+        for d in self.dirichlet:
+            if d.dofs.min() < 0 or d.dofs.max() >= n:
+                raise ValueError(f"Dirichlet {d.name}: DOF index out of range 0..{n - 1}")
+        self.f_fixed = np.zeros(n) if f_fixed is None else np.asarray(f_fixed, float)
+        self.f_ramp = np.zeros(n) if f_ramp is None else np.asarray(f_ramp, float)
+        for name, f in (("f_fixed", self.f_fixed), ("f_ramp", self.f_ramp)):
+            if f.shape != (n,) or not np.all(np.isfinite(f)):
+                raise ValueError(f"{name}: expected a finite vector of shape ({n},), got {f.shape}")
+        self.points = PointState(material, disc.n_points, initial_stress)
+        self.u = np.zeros(n)
+        self.t = 0.0
+        all_d = np.concatenate([d.dofs for d in self.dirichlet]) if self.dirichlet else np.zeros(0, np.int64)
+        self.constrained = np.unique(all_d)
+        self.free = np.setdiff1d(np.arange(n), self.constrained)
+        self._near_nullspace = None
+
+    # ------------------------------------------------------------------ pieces
+    def prescribed(self, t: float) -> np.ndarray:
+        """(n_constrained,) prescribed displacements at load factor t (later conditions win)."""
+        u = np.zeros(self.disc.ndofs)
+        for d in self.dirichlet:
+            u[d.dofs] = d.at(t)
+        return u[self.constrained]
+
+    def external(self, t: float) -> np.ndarray:
+        return self.f_fixed + t * self.f_ramp
+
+    def _evaluate(self, du, t):
+        """Material update for the trial increment du; residual r (ndofs,), failed mask."""
+        de = self.disc.strain(du)
+        stress, tangent, failed = self.points.evaluate(de)
+        if failed.any():
+            raise _StepFailure(f"{int(failed.sum())} material point(s) failed", self.points.suggested_ratio())
+        r = self.disc.internal_force(stress) - self.external(t)
+        if not np.all(np.isfinite(r)):
+            raise _StepFailure("residual not finite")
+        return r, tangent
+
+    def _norms(self, r, t):
+        rf = np.linalg.norm(r[self.free])
+        ref = max(np.linalg.norm(self.external(t)), np.linalg.norm(r[self.constrained]), self.options.force_floor)
+        return rf, ref
+
+    def _nullspace(self):
+        if self._near_nullspace is None:
+            x = self.disc.dof_coordinates()
+            d = self.disc.dim
+            ns = x.shape[0]
+            modes = []
+            for c in range(d):
+                m = np.zeros((ns, d)); m[:, c] = 1.0; modes.append(m.ravel())
+            pairs = [(0, 1)] if d == 2 else [(0, 1), (1, 2), (0, 2)]
+            for i, j in pairs:
+                m = np.zeros((ns, d)); m[:, i] = -x[:, j]; m[:, j] = x[:, i]; modes.append(m.ravel())
+            self._near_nullspace = np.column_stack(modes)[self.free]
+        return self._near_nullspace
+
+    def step(self, t_new: float):
+        """Try one step to load factor t_new from the committed state. Returns (du, iterations, residuals)."""
+        opt = self.options
+        du = np.zeros(self.disc.ndofs)
+        du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
+        r, tangent = self._evaluate(du, t_new)
+        rf, ref = self._norms(r, t_new)
+        residuals = [rf / ref]
+        for it in range(1, opt.max_iter + 1):
+            if residuals[-1] <= opt.tol:
+                return du, it - 1, residuals
+            K = self.disc.stiffness(tangent)
+            Kff = K[self.free][:, self.free]
+            ddu = np.zeros_like(du)
+            ns = self._nullspace() if opt.linear_solver == "amg-gmres" else None
+            ddu[self.free] = linear_solve(Kff, -r[self.free], opt.linear_solver, opt.krylov_tol, ns)
+            if not np.all(np.isfinite(ddu)):
+                raise _StepFailure("linear solve failed (singular tangent?)")
+            s = 1.0
+            for ls in range(opt.line_search + 1):
+                try:
+                    r_new, tangent_new = self._evaluate(du + s * ddu, t_new)
+                    rf_new, ref_new = self._norms(r_new, t_new)
+                except _StepFailure:
+                    if ls == opt.line_search:
+                        raise
+                    s *= 0.5
+                    continue
+                if rf_new <= rf or ls == opt.line_search:
+                    break
+                s *= 0.5
+            du = du + s * ddu
+            r, tangent, rf, ref = r_new, tangent_new, rf_new, ref_new
+            residuals.append(rf / ref)
+            if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
+                raise _StepFailure("Newton diverging")
+        if residuals[-1] <= opt.tol:
+            return du, opt.max_iter, residuals
+        raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e})")
+
+    # ------------------------------------------------------------------ driver
+    def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
+            progress: bool = False, observers=(), fixed_steps: bool = False) -> Solution:
+        """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
+
+        writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
+        observers : callables ``f(solver) -> dict`` adding columns to each history row.
+        fixed_steps : never grow dt above t_end / steps (the default; kept for clarity of intent).
+        """
+        opt = self.options
+        steps = int(steps)
+        if steps < 1:
+            raise ValueError(f"steps = {steps}: must be >= 1")
+        dt0 = float(t_end) / steps
+        dt_max = dt0 if dt_max is None else float(dt_max)
+        dt = dt0
+        history = History()
+        residual_log = []
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=float(t_end), unit="load", bar_format="{l_bar}{bar}| t={n:.3f}/{total:.3f} {postfix}")
+        row = self._row(0, 0, [0.0], 0, observers)
+        history.append(row)
+        if writer is not None:
+            writer.write(0.0, self, row)
+        completed, reason = False, ""
+        cuts, n_step = 0, 0
+        while self.t < t_end * (1 - 1e-12):
+            dt = min(dt, t_end - self.t)
+            t_new = self.t + dt
+            t0 = time.perf_counter()
+            try:
+                du, iters, residuals = self.step(t_new)
+            except _StepFailure as exc:
+                self.points.revert()
+                cuts += 1
+                ratio = min(0.5, max(exc.ratio, 0.1))
+                dt *= ratio
+                if cuts > opt.max_cuts or dt < opt.dt_min:
+                    reason = f"stopped at t = {self.t:.6g}: {exc.reason}; {cuts - 1} cut-backs did not help"
+                    break
+                if bar is not None:
+                    bar.set_postfix_str(f"cut-back ({exc.reason}), dt={dt:.3g}")
+                continue
+            self.points.commit()
+            self.u = self.u + du
+            self.t = t_new
+            n_step += 1
+            residual_log.append(residuals)
+            row = self._row(n_step, iters, residuals, cuts, observers)
+            row["wall_time_s"] = time.perf_counter() - t0
+            history.append(row)
+            if writer is not None:
+                writer.write(self.t, self, row)
+            if bar is not None:
+                bar.update(dt)
+                bar.set_postfix_str(f"it={iters} res={residuals[-1]:.1e} cuts={cuts}")
+            cuts = 0
+            if not fixed_steps and iters <= opt.easy_iter:
+                dt = min(dt * opt.grow, dt_max)
+        else:
+            completed, reason = True, f"reached t = {t_end:g}"
+        if bar is not None:
+            bar.close()
+        if writer is not None:
+            writer.close(self, completed, reason)
+        return Solution(u=self.u.copy(), stress=self.points.stress.copy(), state=self.points.state,
+                        history=history, completed=completed, stop_reason=reason,
+                        out_dir=getattr(writer, "out_dir", None), residuals=residual_log)
+
+    def _row(self, n_step, iters, residuals, cuts, observers):
+        r = self.disc.internal_force(self.points.stress) - self.external(self.t)
+        row = {"step": n_step, "load_factor": self.t, "iterations": iters, "residual": residuals[-1], "cutbacks": cuts}
+        for d in self.dirichlet:
+            if d.name:
+                row[f"{d.name}_displacement"] = float(np.mean(self.u[d.dofs]))
+                row[f"{d.name}_reaction"] = float(np.sum(r[d.dofs]))
+        for obs in observers:
+            row.update(obs(self))
+        return row
+
+
+def check_material(material) -> None:
+    """Raise ``ValueError`` unless ``material`` follows the interface of :mod:`material.base`.
+
+    Calls ``initial_state(1)`` and ``update`` with a zero increment: the state must carry "status",
+    "step_ratio", "strain"; the stress must be (1, 3, 3) and the tangent (1, 3, 3, 3, 3), finite.
+    """
+    for m in ("initial_state", "update"):
+        if not callable(getattr(material, m, None)):
+            raise ValueError(f"material {type(material).__name__}: lacks the method {m}(); "
+                             "allowed: objects with initial_state(n, stress=...) and update(d_strain, stress, state)")
+    st = material.initial_state(1)
+    missing = [k for k in ("status", "step_ratio", "strain") if k not in st]
+    if missing:
+        raise ValueError(f"material {type(material).__name__}: state lacks {missing}")
+    s, st2, D = material.update(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), st)
+    if np.shape(s) != (1, 3, 3) or np.shape(D) != (1, 3, 3, 3, 3) or not np.all(np.isfinite(D)):
+        raise ValueError(f"material {type(material).__name__}: update must return stress (N,3,3) and a finite "
+                         f"tangent (N,3,3,3,3); got {np.shape(s)} and {np.shape(D)}")
