@@ -66,6 +66,7 @@ __all__ = [
 _IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
 _W = np.array([1.0, 1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0), math.sqrt(2.0)])
 _DELTA = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+_BACKTRACKS = 3  # halvings of a Newton correction the law could not integrate
 _I_IDX = np.array([i for i, _ in _IJ])
 _J_IDX = np.array([j for _, j in _IJ])
 
@@ -343,7 +344,10 @@ def _update(model, point: _Point, d_eps: np.ndarray):
 
 
 def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int):
-    """Newton for one step from ``point`` to the conditions ``c_end``; returns (_Point, iterations) or a reason."""
+    """Newton for one step from ``point`` to the conditions ``c_end``.
+
+    Returns (_Point, iterations, stress residual [kPa], None) on convergence, else (None, None, reason).
+    """
     a, b, undrained = seg.A, seg.B, seg.undrained
     srows = seg.stress_rows
     n = 7 if undrained else 6
@@ -356,9 +360,9 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
         conv_s = np.abs(r[srows]).max(initial=0.0) <= tol * scale
         conv_e = np.abs(r[~srows]).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(c_end[~srows]).max(initial=0.0))
         if it > 0 and conv_s and conv_e:
-            return _Point(point.strain + d_eps, sig, point.u + d_u, state, tangent), it
+            return _Point(point.strain + d_eps, sig, point.u + d_u, state, tangent), it, np.abs(r[srows]).max(initial=0.0)
         if it == max_iter:
-            return None, f"Newton did not converge in {max_iter} iterations (stress residual {np.abs(r[srows]).max(initial=0.0):.3g} kPa)"
+            return None, None, f"Newton did not converge in {max_iter} iterations (stress residual {np.abs(r[srows]).max(initial=0.0):.3g} kPa)"
         jac = np.zeros((n, n))
         jac[:6, :6] = a + b @ tangent
         res = np.zeros(n)
@@ -370,16 +374,23 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
         try:
             dx = np.linalg.solve(jac, -res)
         except np.linalg.LinAlgError:
-            return None, "singular system (the prescribed stresses cannot be reached: limit state?)"
+            return None, None, "singular system (the prescribed stresses cannot be reached: limit state?)"
         if not np.isfinite(dx).all():
-            return None, "non-finite Newton correction"
-        d_eps = d_eps + dx[:6]
+            return None, None, "non-finite Newton correction"
+        # backtracking: if the law cannot integrate the trial increment, shorten the correction
+        for _ in range(_BACKTRACKS + 1):
+            trial = d_eps + dx[:6]
+            new = _update(model, point, trial)
+            if not new[3] and np.isfinite(new[0]).all():
+                break
+            dx = 0.5 * dx
+        else:
+            return None, None, "the material returned status FAILED (no converged stress for this increment)"
+        d_eps = trial
         if undrained:
             d_u += dx[6]
-        sig, state, tangent, failed = _update(model, point, d_eps)
-        if failed or not np.isfinite(sig).all():
-            return None, "the material returned status FAILED (no converged stress for this increment)"
-    return None, "Newton loop exhausted"  # pragma: no cover
+        sig, state, tangent, _ = new
+    return None, None, "Newton loop exhausted"  # pragma: no cover
 
 
 def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int = 30, max_cuts: int = 6,
@@ -428,7 +439,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     strain_ref = point.strain.copy()
 
     rows_s, rows_e, rows_u = [point.stress], [point.strain - strain_ref], [0.0]
-    rows_stage, rows_it, rows_cut = [0], [0], [0]
+    rows_stage, rows_it, rows_cut, rows_res = [0], [0], [0], [0.0]
     stages = [seg.name or f"segment {i}" for i, seg in enumerate(path.segments)]
     message = ""
     bar = None
@@ -447,7 +458,8 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
             for k in range(1, seg.steps + 1):
                 step_no += 1
                 goal = c_start + (c_end - c_start) * (k / seg.steps)
-                new, its, cuts, reason = _step_with_cutbacks(model, point, seg, goal, tolerance, max_iter, max_cuts)
+                new, its, cuts, resid, reason = _step_with_cutbacks(model, point, seg, goal, tolerance, max_iter,
+                                                                    max_cuts)
                 if new is None:
                     message = f"step {step_no} (segment {iseg} '{stages[iseg]}', step {k}/{seg.steps}) failed after {max_cuts} cut-backs: {reason}"
                     break
@@ -458,6 +470,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
                 rows_stage.append(iseg)
                 rows_it.append(its)
                 rows_cut.append(cuts)
+                rows_res.append(resid)
                 if bar is not None:
                     bar.update(1)
             if message:
@@ -472,6 +485,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
         "stage": np.array(rows_stage),
         "iterations": np.array(rows_it),
         "cuts": np.array(rows_cut),
+        "stress_residual_kPa": np.array(rows_res),
         "u_kPa": np.array(rows_u),
     }
     desc = {
@@ -479,6 +493,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
         "stage": "index of the path segment (names in metadata['stages'])",
         "iterations": "Newton iterations of the step (summed over sub-steps)",
         "cuts": "number of halvings the step needed (0 = none)",
+        "stress_residual_kPa": "largest misfit of a prescribed stress condition at the end of the step [kPa]",
         "u_kPa": "excess pore pressure [kPa], compression + (0 for drained segments)",
     }
     std_cols, std_desc = standard_columns(stress, strain)
@@ -501,21 +516,24 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
 
 
 def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):
-    """Reach ``goal`` from ``point``; on failure split into 2**k equal sub-steps. -> (point, its, cuts, reason)."""
+    """Reach ``goal`` from ``point``; on failure split into 2**k equal sub-steps.
+
+    Returns (point or None, iterations, cuts, largest stress residual [kPa], reason of failure).
+    """
     c_start = seg.A @ point.strain + seg.B @ (point.stress - point.u * _DELTA)
     reason = ""
     for cuts in range(max_cuts + 1):
         n_sub = 2**cuts
-        p, total_its = point, 0
+        p, total_its, worst = point, 0, 0.0
         for j in range(1, n_sub + 1):
-            new, info = _solve_step(model, p, seg, c_start + (goal - c_start) * (j / n_sub), tol, max_iter)
+            new, its, info = _solve_step(model, p, seg, c_start + (goal - c_start) * (j / n_sub), tol, max_iter)
             if new is None:
                 reason = info
                 break
-            p, total_its = new, total_its + info
+            p, total_its, worst = new, total_its + its, max(worst, info)
         else:
-            return p, total_its, cuts, ""
-    return None, 0, max_cuts, reason
+            return p, total_its, cuts, worst, ""
+    return None, 0, max_cuts, 0.0, reason
 
 
 # ---------------------------------------------------------------------------- model construction
@@ -538,6 +556,16 @@ def _make_model(model_or_params, alpha_deg: float, rule: str | None):
         )
     if rule is not None:
         raise ValueError("rule: only used when the model is built from CPAParameters; the given model has its own rule")
+    axes = getattr(model_or_params, "axes", None)
+    if axes is not None:
+        from material.anisotropy import axes_from_alpha
+
+        if not np.allclose(np.asarray(axes)[:, 1], axes_from_alpha(alpha_deg)[:, 1], atol=1e-9):
+            raise ValueError(
+                f"alpha_deg = {alpha_deg!r} does not match the model's material axes (e2 = "
+                f"{np.round(np.asarray(axes)[:, 1], 6).tolist()}); build the model with "
+                f"axes=axes_from_alpha({alpha_deg!r}) or pass the CPAParameters instead of a model"
+            )
     return model_or_params, getattr(model_or_params, "params", None)
 
 
@@ -573,7 +601,9 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
     """Conventional triaxial test: isotropic p0, then axial strain along z at constant cell pressure.
 
     The point starts at the isotropic effective stress -p0 I (for the CPA law ``initial_state(1,
-    stress=-p0 I)``; strains are zeroed there, like a lab test zeroes them after consolidation).
+    stress=-p0 I)``; strains are zeroed there, like a lab test zeroes them after consolidation). This
+    replaces the consolidation stage exactly for the CPA law: an isotropic stress puts no shear on any
+    plane (no slip) and the induced anisotropy depends on the deviatoric strain only.
     Shearing prescribes eps_zz (compression, or extension if ``extension``) and keeps the lateral
     normal stresses AND the three shear stresses prescribed (sigma_xx = sigma_yy = -p0 total,
     shear stresses 0), so an inclined sample (alpha not 0 or 90) may develop shear strains.
@@ -584,7 +614,8 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
     ----------
     model_or_params : material object, CPAParameters or preset name
         A CPAParameters (or preset) builds ``CPAModel(params, axes=axes_from_alpha(alpha_deg))``; a
-        material object is used as given (with its own axes; ``alpha_deg`` is then only recorded).
+        material object is used as given (a model with an ``axes`` attribute must match ``alpha_deg``,
+        else ValueError; for isotropic laws ``alpha_deg`` is only recorded).
     p0_kPa : float
         Confining (cell) effective pressure [kPa], > 0.
     alpha_deg : float

@@ -159,3 +159,36 @@ def test_von_mises_yields_at_sigma_y():
     assert np.ptp(res["eps_v"][yielded]) < 1e-12  # isochoric J2 flow
     ds = driver.direct_shear(vm, sigma_n_kPa=100.0, shear_displacement=0.0012, steps=40, band_thickness_m=0.006)
     assert ds["tau_kPa"].max() == pytest.approx(30.0 / np.sqrt(3.0), rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "fn, kwargs",
+    [
+        (driver.triaxial, {"alpha_deg": 30.0, "axial_strain": 0.05}),
+        (driver.triaxial, {"alpha_deg": 90.0, "axial_strain": 0.05, "extension": True}),
+        (driver.triaxial, {"alpha_deg": 30.0, "axial_strain": 0.05, "drained": False}),
+        (driver.plane_strain, {"alpha_deg": 60.0, "axial_strain": 0.05}),
+        (driver.true_triaxial, {"alpha_deg": 30.0, "b": 0.5, "axial_strain": 0.05}),
+        (driver.direct_shear, {"alpha_deg": 30.0, "shear_displacement": 0.001}),
+        (driver.simple_shear, {"alpha_deg": 30.0, "shear_strain": 0.04, "lateral": "stress"}),
+        (driver.cyclic_simple_shear, {"alpha_deg": 30.0, "cycles": 1, "steps_per_quarter": 15}),
+        (driver.rotation, {"delta_psi_deg": 45.0, "preshear_steps": 30, "unload_steps": 10}),
+    ],
+)
+def test_every_driver_holds_prescribed_stresses(c109, fn, kwargs):
+    params = load_preset("ottawa_c109_induced").replace(beta=5.0) if fn is driver.rotation else c109
+    res = fn(params, steps=60, **kwargs) if fn is not driver.cyclic_simple_shear else fn(params, **kwargs)
+    assert res.completed, res.message
+    assert res["stress_residual_kPa"].max() <= 1e-8 * np.abs(res.stress).max()
+    assert res["iterations"][1:].min() >= 1
+
+
+def test_model_axes_must_match_alpha(c109):
+    from material.cpa import CPAModel
+
+    model = CPAModel(c109, axes=axes_from_alpha(0.0))
+    with pytest.raises(ValueError, match="alpha_deg = 90"):
+        driver.triaxial(model, alpha_deg=90.0, steps=2)
+    res = driver.triaxial(CPAModel(c109, axes=axes_from_alpha(90.0)), alpha_deg=90.0, axial_strain=0.01, steps=5)
+    ref = driver.triaxial(c109, alpha_deg=90.0, axial_strain=0.01, steps=5)
+    assert np.allclose(res["q_kPa"], ref["q_kPa"], rtol=1e-12)
