@@ -155,7 +155,7 @@ class Discretisation:
 
     def quadrature_points(self) -> np.ndarray:
         """(N, dim) global coordinates of the quadrature points [m], element-major."""
-        x = self.basis.global_coordinates().value  # (dim, nel, nq)
+        x = np.asarray(self.basis.global_coordinates())  # (dim, nel, nq)
         return np.ascontiguousarray(x.reshape(self.dim, -1).T)
 
     # ------------------------------------------------------------------ kinematics and forces
@@ -222,7 +222,7 @@ class Discretisation:
         quadrature coordinates ``x`` (dim, nfacets, nqp). Pressures: :meth:`pressure_force`.
         """
         fb = skfem.FacetBasis(self.mesh, self.element, facets=np.asarray(facets), intorder=self.intorder)
-        x = fb.global_coordinates().value
+        x = np.asarray(fb.global_coordinates())
         t = traction(x) if callable(traction) else np.broadcast_to(np.asarray(traction, float)[:, None, None],
                                                                     (self.dim,) + x.shape[1:])
         return self._facet_load(fb, lambda w, c: t[c])
@@ -230,7 +230,7 @@ class Discretisation:
     def pressure_force(self, facets, pressure) -> np.ndarray:
         """Nodal forces of a pressure p [kPa] (compression positive, acting against the outward normal)."""
         fb = skfem.FacetBasis(self.mesh, self.element, facets=np.asarray(facets), intorder=self.intorder)
-        x = fb.global_coordinates().value
+        x = np.asarray(fb.global_coordinates())
         p = pressure(x) if callable(pressure) else float(pressure)
         return self._facet_load(fb, lambda w, c: -p * w.n[c])
 

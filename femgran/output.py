@@ -46,7 +46,7 @@ class L2Projector:
         M = skfem.BilinearForm(lambda u, v, w: u * v).assemble(self.basis)
         self._lu = spla.splu(M.tocsc())
         nb = self.basis.Nbfun
-        self._N = np.stack([self.basis.basis[a][0].value for a in range(nb)])  # (nb, nel, nq)
+        self._N = np.stack([np.asarray(self.basis.basis[a][0]) for a in range(nb)])  # (nb, nel, nq)
         self._dofs = self.basis.element_dofs  # (nb, nel)
         self._dx = disc.dx
         self.n = self.basis.N
