@@ -5,7 +5,8 @@ only assembles them:
 
 * :mod:`material.cli` -- ``femgran element ...`` (single-point element tests);
 * :mod:`femgran.cases.cli` -- ``femgran triaxial|footing|biaxial|run ...`` (boundary-value problems);
-* :mod:`dem.cli` -- ``femgran dem ...`` and ``femgran calibrate ...`` (virtual experiments).
+* :mod:`dem.cli` -- ``femgran dem ...`` and ``femgran calibrate ...`` (virtual experiments);
+* :mod:`femgran.figures` -- ``femgran figures`` (the thesis's model figures).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import argparse
 import importlib
 import sys
 
-_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli")
+_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures")
 
 
 def build_parser() -> argparse.ArgumentParser:
