@@ -8,7 +8,7 @@ Examples::
     femgran element rotation --dpsi 0 45 90 --set beta=5
     femgran element path lab.csv --substeps 5      # replay lab data (see material.driver.LoadPath.from_csv)
 
-Every run writes into ``--out`` (default ``out/element``): one CSV per run (``<test>_<tag>.csv``, with
+Every run writes into ``--out`` (default ``out/element``): one CSV per run (``<test>_<tag>.csv``, tag e.g. ``p0_100_alpha_90``, with
 a commented header), one PNG overlaying the runs, the parameter file used (``parameters.toml``) and
 ``run.json`` (command, options, package version, seed = none: the tests are deterministic).
 """
@@ -175,7 +175,7 @@ def _run(args) -> int:
         values = [getattr(args, dest) for dest, _, _ in sweeps]
         for combo in itertools.product(*values):
             kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
-            tag = "_".join(f"{dest}{v:g}" for (dest, _, _), v in zip(sweeps, combo))
+            tag = "_".join(f"{dest}_{v:g}" for (dest, _, _), v in zip(sweeps, combo))
             res = fn(params, rule=args.rule, progress=not args.no_progress, **kw, **_specific_kwargs(args))
             runs.append((tag, kw, res))
     files = []

@@ -15,16 +15,16 @@ def test_element_triaxial_writes_run_folder(tmp_path):
     rc = main(["element", "triaxial", "--steps", "30", "--out", str(out), "--no-progress"])
     assert rc == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["parameters.toml", "run.json", "triaxial.png", "triaxial_p0100_alpha0.csv",
-                     "triaxial_p0100_alpha90.csv"]
+    assert names == ["parameters.toml", "run.json", "triaxial.png", "triaxial_p0_100_alpha_0.csv",
+                     "triaxial_p0_100_alpha_90.csv"]
     run = json.loads((out / "run.json").read_text())
     assert run["test"] == "triaxial" and run["seed"] is None and run["femgran_version"]
     assert all(r["completed"] for r in run["runs"])
     assert load_parameters(out / "parameters.toml") == load_preset("ottawa_c109")
-    res = read_csv(out / "triaxial_p0100_alpha0.csv")
+    res = read_csv(out / "triaxial_p0_100_alpha_0.csv")
     assert len(res) == 31
     assert res.metadata["parameters"]["eta0"] == pytest.approx(0.8896)
-    assert res["q_kPa"][-1] > read_csv(out / "triaxial_p0100_alpha90.csv")["q_kPa"][-1]
+    assert res["q_kPa"][-1] > read_csv(out / "triaxial_p0_100_alpha_90.csv")["q_kPa"][-1]
 
 
 def test_element_rotation_with_override(tmp_path):
@@ -32,7 +32,7 @@ def test_element_rotation_with_override(tmp_path):
                "--no-progress", "--no-plot"])
     assert rc == 0
     assert load_parameters(tmp_path / "parameters.toml").beta == 5.0
-    res = read_csv(tmp_path / "rotation_p014_dpsi90.csv")
+    res = read_csv(tmp_path / "rotation_p0_14_dpsi_90.csv")
     assert res.metadata["delta_psi_deg"] == 90.0
     assert np.abs(res["eps_zz"]).max() < 1e-12
 
