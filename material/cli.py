@@ -167,7 +167,10 @@ def _run(args) -> int:
         from material.cpa import CPAModel
 
         path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
-        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress)
+        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress,
+                              log=out / "path.steps.csv")
+        res.to_csv(out / "path_path.csv")
+        (out / "path.steps.csv").unlink(missing_ok=True)
         runs.append(("path", {}, res))
     else:
         sweeps = _SWEEPS[args.test]
@@ -176,12 +179,14 @@ def _run(args) -> int:
         for combo in itertools.product(*values):
             kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
             tag = "_".join(f"{dest}_{v:g}" for (dest, _, _), v in zip(sweeps, combo))
-            res = fn(params, rule=args.rule, progress=not args.no_progress, **kw, **_specific_kwargs(args))
+            log = out / f"{stem}_{tag}.steps.csv"  # written step by step; removed once the table is saved
+            res = fn(params, rule=args.rule, progress=not args.no_progress, log=log, **kw, **_specific_kwargs(args))
             runs.append((tag, kw, res))
+            res.to_csv(out / f"{stem}_{tag}.csv")
+            log.unlink(missing_ok=True)
     files = []
     for tag, kw, res in runs:
-        f = res.to_csv(out / f"{stem}_{tag}.csv")
-        files.append(f.name)
+        files.append(f"{stem}_{tag}.csv")
         if not res.completed:
             print(f"femgran element {args.test}: {tag}: stopped early: {res.message}", file=sys.stderr)
     if not args.no_plot:
@@ -212,7 +217,7 @@ def _summary(tag: str, res) -> str:
         if col in res:
             bits.append(f"max {col} = {res[col].max():.4g}")
             break
-    for col in ("eps_v", "normal_displacement_m"):
+    for col in ("normal_displacement_m", "eps_v"):
         if col in res:
             bits.append(f"final {col} = {res[col][-1]:.4g}")
             break

@@ -394,7 +394,7 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
 
 
 def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int = 30, max_cuts: int = 6,
-             on_failure: str = "return", progress: bool = False, state=None) -> ElementResult:
+             on_failure: str = "return", progress: bool = False, state=None, log=None) -> ElementResult:
     """Drive one material point along a mixed stress/strain path (see the module docstring).
 
     Parameters
@@ -416,6 +416,10 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
         Show a tqdm progress bar.
     state : dict, optional
         Initial material state (default ``model.initial_state(1, stress=path.initial_stress)``).
+    log : path, optional
+        CSV written step by step while the path runs (step, stage, u_kPa, the six stress and six
+        strain components, tension +), flushed after every step, so a long or interrupted run keeps
+        its converged steps on disk.
 
     Returns
     -------
@@ -448,6 +452,14 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
 
         bar = tqdm(total=path.n_steps, desc="element", unit="step", leave=False)
     step_no = 0
+    log_fh = None
+    if log is not None:
+        log_path = _FilePath(log)
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        log_fh = log_path.open("w", encoding="utf-8")
+        log_fh.write("step,stage,u_kPa," + ",".join(f"sig_{c}_kPa" for c in COMPONENTS) + ","
+                     + ",".join(f"eps_{c}" for c in COMPONENTS) + "\n")
+        _log_row(log_fh, 0, 0, 0.0, point.stress, point.strain - strain_ref)
     try:
         for iseg, seg in enumerate(path.segments):
             c_start = seg.A @ point.strain + seg.B @ (point.stress - point.u * _DELTA)
@@ -471,6 +483,8 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
                 rows_it.append(its)
                 rows_cut.append(cuts)
                 rows_res.append(resid)
+                if log_fh is not None:
+                    _log_row(log_fh, step_no, iseg, point.u, point.stress, point.strain - strain_ref)
                 if bar is not None:
                     bar.update(1)
             if message:
@@ -478,6 +492,8 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     finally:
         if bar is not None:
             bar.close()
+        if log_fh is not None:
+            log_fh.close()
 
     stress, strain = from_mandel(np.array(rows_s)), from_mandel(np.array(rows_e))
     cols = {
@@ -513,6 +529,12 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
             raise PathFailure(message, res)
         warnings.warn(f"element path stopped early: {message}", RuntimeWarning, stacklevel=2)
     return res
+
+
+def _log_row(fh, step: int, stage: int, u: float, stress_m: np.ndarray, strain_m: np.ndarray) -> None:
+    vals = np.concatenate([stress_m / _W, strain_m / _W])  # tensor components
+    fh.write(f"{step},{stage},{u:.12g}," + ",".join(f"{v:.12g}" for v in vals) + "\n")
+    fh.flush()
 
 
 def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):

@@ -78,7 +78,7 @@ def test_triaxial_peak_approaches_analytic_strength(c109, alpha):
                               on_failure="return")
         err[rule] = abs(res["q_kPa"].max() / qf - 1.0)
     assert err["bazant-oh-33"] < 0.05
-    assert err["lebedev-110"] < 0.01
+    assert err["lebedev-110"] < 0.02
     assert err["lebedev-110"] < err["bazant-oh-33"] < err["lebedev-26"]
 
 

@@ -257,3 +257,13 @@ def test_csv_path_bad_input(tmp_path, text, exc, match):
 def test_csv_path_missing_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="nothere.csv"):
         LoadPath.from_csv(tmp_path / "nothere.csv")
+
+
+def test_log_written_step_by_step(hooke, tmp_path):
+    log = tmp_path / "steps.csv"
+    res = driver.triaxial(hooke, p0_kPa=100.0, axial_strain=0.001, steps=4, log=log)
+    data = np.loadtxt(log, delimiter=",", skiprows=1)
+    header = log.read_text().splitlines()[0].split(",")
+    assert data.shape == (5, 15)
+    assert np.allclose(data[:, header.index("sig_zz_kPa")], res["sig_zz_kPa"], rtol=1e-10)
+    assert np.allclose(data[:, header.index("eps_xx")], res["eps_xx"], rtol=1e-10)
