@@ -45,6 +45,7 @@ from material.results import COMPONENTS, ElementResult, standard_columns
 
 __all__ = [
     "COMPONENTS",
+    "ElementResult",
     "LoadPath",
     "Segment",
     "PathFailure",
@@ -239,6 +240,11 @@ class LoadPath:
         both = (np.abs(a).sum(1) > 0) & (np.abs(b).sum(1) > 0)
         if both.any():
             raise ValueError(f"conditions: row(s) {np.flatnonzero(both).tolist()} mix strain and stress; use one per row")
+        if undrained and np.allclose(b @ _DELTA, 0.0):
+            raise ValueError(
+                "undrained segment: no stress condition involves a normal stress, so the pore pressure "
+                "(the multiplier of tr(d eps) = 0) is undetermined; prescribe at least one total normal stress"
+            )
         self.segments.append(Segment(int(steps), a, b, c, rel, bool(undrained), str(name)))
         return self
 

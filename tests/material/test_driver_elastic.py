@@ -267,3 +267,8 @@ def test_log_written_step_by_step(hooke, tmp_path):
     assert data.shape == (5, 15)
     assert np.allclose(data[:, header.index("sig_zz_kPa")], res["sig_zz_kPa"], rtol=1e-10)
     assert np.allclose(data[:, header.index("eps_xx")], res["eps_xx"], rtol=1e-10)
+
+
+def test_undrained_needs_a_normal_stress_condition():
+    with pytest.raises(ValueError, match="undrained segment"):
+        LoadPath().add(1, eps_xx=0, eps_yy=0, eps_zz=-0.01, sig_yz=0, sig_xz=0, sig_xy=0, undrained=True)
