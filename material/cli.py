@@ -7,6 +7,7 @@ Examples::
     femgran element direct-shear --sigma-n 10 50 75 --alpha 0 45 90
     femgran element rotation --dpsi 0 45 90 --set beta=5
     femgran element path lab.csv --substeps 5      # replay lab data (see material.driver.LoadPath.from_csv)
+    femgran element path path.toml                 # a path declared as data (LoadPath.from_toml)
 
 Every run writes into ``--out`` (default ``out/element``): one CSV per run (``<test>_<tag>.csv``, tag e.g. ``p0_100_alpha_90``, with
 a commented header), one PNG overlaying the runs, the parameter file used (``parameters.toml``) and
@@ -108,7 +109,9 @@ def _add_specific(p, name: str) -> None:
         p.add_argument("--preshear-strain", type=float, default=0.02, help="pre-shear strain along x (default 0.02)")
         p.add_argument("--axial-strain", type=float, default=0.05, help="reshear strain along the rotated axis (default 0.05)")
     if name == "path":
-        p.add_argument("csv", help="CSV with columns sig_<c>_kPa / eps_<c> per component (tension +)")
+        p.add_argument("csv", metavar="FILE",
+                       help="CSV with columns sig_<c>_kPa / eps_<c> per component (tension +), or a TOML path "
+                            "declared as segments (material.driver.LoadPath.from_toml)")
         p.add_argument("--substeps", type=int, default=1, help="load steps per CSV row (default 1)")
 
 
@@ -166,7 +169,10 @@ def _run(args) -> int:
     if args.test == "path":
         from material.cpa import CPAModel
 
-        path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
+        if str(args.csv).lower().endswith(".toml"):
+            path = driver.LoadPath.from_toml(args.csv)
+        else:
+            path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
         res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress,
                               log=out / "path.steps.csv")
         res.to_csv(out / "path_path.csv")

@@ -15,6 +15,8 @@ test). The unknown strain increment is found by Newton on these conditions with 
 tangent (6x6 Mandel form); the material state is kept at the start of the step and committed on
 convergence. An undrained segment adds the constraint tr(d eps) = 0 per step, whose Lagrange
 multiplier is the excess pore pressure increment (total stress = effective stress - u I, tension +).
+In a drained segment u keeps its last value (no consolidation is modelled; u = 0 unless an undrained
+segment came before), and stress conditions are always on the total stress sigma - u delta.
 
 A step that fails (law status FAILED, Newton not converged, singular system) is retried in 2, 4, ...
 sub-steps (``max_cuts`` halvings); if it still fails the run stops, and the table of the steps
@@ -154,7 +156,7 @@ class LoadPath:
     """A mixed stress/strain-controlled loading path: a list of :class:`Segment`.
 
     Build it with :meth:`add` (component-wise control in a frame), :meth:`add_conditions` (raw A, B,
-    c rows) or :meth:`from_csv` (lab data), e.g. a drained triaxial compression from -p0 I::
+    c rows), :meth:`from_toml` (a path declared as data) or :meth:`from_csv` (lab data), e.g. a drained triaxial compression from -p0 I::
 
         path = LoadPath(initial_stress=-100.0 * np.eye(3))
         path.add(steps=300, eps_zz=-0.15, sig_xx=-100.0, sig_yy=-100.0,
@@ -247,6 +249,69 @@ class LoadPath:
             )
         self.segments.append(Segment(int(steps), a, b, c, rel, bool(undrained), str(name)))
         return self
+
+    @classmethod
+    def from_toml(cls, path) -> "LoadPath":
+        """Read a path declared as data (like an MTest file) from TOML.
+
+        Layout::
+
+            p0_kPa = 100.0                 # initial stress -p0 I; or initial_stress_kPa = [[...], [...], [...]]
+
+            [[segment]]
+            name = "compression"           # optional
+            steps = 100
+            eps_zz = -0.05                 # one of sig_<c> [kPa] / eps_<c> per component, tension +
+            sig_xx = -100.0
+            sig_yy = -100.0
+            sig_yz = 0.0
+            sig_xz = 0.0
+            sig_xy = 0.0
+            # optional: relative_strain = true, relative_stress = false, undrained = false,
+            #           frame_z_deg = 0.0 (components given in axes rotated about z by this angle)
+
+        Unknown keys raise ``KeyError`` naming them; values are checked like :meth:`add`.
+        """
+        import tomllib
+
+        path = _FilePath(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"path file {str(path)!r} does not exist")
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{path}: not valid TOML: {exc}") from None
+        top = set(doc) - {"p0_kPa", "initial_stress_kPa", "segment", "description"}
+        if top:
+            raise KeyError(f"{path}: unknown key(s) {sorted(top)}; allowed: p0_kPa, initial_stress_kPa, segment, description")
+        if "p0_kPa" in doc and "initial_stress_kPa" in doc:
+            raise ValueError(f"{path}: give p0_kPa or initial_stress_kPa, not both")
+        if "initial_stress_kPa" in doc:
+            s0 = np.asarray(doc["initial_stress_kPa"], dtype=float)
+        else:
+            s0 = -float(doc.get("p0_kPa", 0.0)) * np.eye(3)
+        out = cls(initial_stress=s0)
+        segments = doc.get("segment", [])
+        if not isinstance(segments, list) or not segments:
+            raise ValueError(f"{path}: no [[segment]] tables; add at least one")
+        options = {"name", "steps", "relative_strain", "relative_stress", "undrained", "frame_z_deg"}
+        comps = {f"{k}_{c}" for k in ("sig", "eps") for c in COMPONENTS}
+        for i, seg in enumerate(segments):
+            unknown = set(seg) - options - comps
+            if unknown:
+                raise KeyError(f"{path}: segment {i}: unknown key(s) {sorted(unknown)}; allowed: "
+                               f"{sorted(options)} and sig_<c> / eps_<c> for <c> in {list(COMPONENTS)}")
+            if "steps" not in seg:
+                raise ValueError(f"{path}: segment {i}: missing 'steps'")
+            frame = rotation_about_z(seg["frame_z_deg"]) if "frame_z_deg" in seg else None
+            try:
+                out.add(seg["steps"], frame=frame, relative_strain=bool(seg.get("relative_strain", True)),
+                        relative_stress=bool(seg.get("relative_stress", False)),
+                        undrained=bool(seg.get("undrained", False)), name=str(seg.get("name", f"segment {i}")),
+                        **{k: v for k, v in seg.items() if k in comps})
+            except ValueError as exc:
+                raise ValueError(f"{path}: segment {i}: {exc}") from None
+        return out
 
     @classmethod
     def from_csv(cls, path, substeps: int = 1, initial_stress=None) -> "LoadPath":

@@ -272,3 +272,42 @@ def test_log_written_step_by_step(hooke, tmp_path):
 def test_undrained_needs_a_normal_stress_condition():
     with pytest.raises(ValueError, match="undrained segment"):
         LoadPath().add(1, eps_xx=0, eps_yy=0, eps_zz=-0.01, sig_yz=0, sig_xz=0, sig_xy=0, undrained=True)
+
+
+def test_toml_path_matches_drivers(hooke, tmp_path):
+    f = tmp_path / "path.toml"
+    f.write_text(
+        "p0_kPa = 100.0\n"
+        "[[segment]]\nname = 'undrained'\nsteps = 4\nundrained = true\n"
+        "eps_zz = -0.004\nsig_xx = -100.0\nsig_yy = -100.0\nsig_yz = 0.0\nsig_xz = 0.0\nsig_xy = 0.0\n"
+        "[[segment]]\nsteps = 2\nframe_z_deg = 30.0\n"
+        "eps_xx = -0.001\nsig_yy = -100.0\nsig_xy = 0.0\neps_zz = 0.0\nsig_yz = 0.0\nsig_xz = 0.0\n"
+    )
+    path = LoadPath.from_toml(f)
+    assert [s.name for s in path.segments] == ["undrained", "segment 1"]
+    res = run_path(hooke, path)
+    ref = driver.triaxial(hooke, p0_kPa=100.0, axial_strain=0.004, steps=4, drained=False)
+    assert np.allclose(res.stress[:5], ref.stress, rtol=0, atol=1e-9)
+    assert res["u_kPa"][4] == pytest.approx(G * 0.004, rel=1e-9)
+    r = driver.rotation_about_z(30.0)
+    s_rot = r.T @ res.stress[-1] @ r
+    assert s_rot[0, 1] == pytest.approx(0.0, abs=1e-8 * 100)
+
+
+@pytest.mark.parametrize(
+    "text, exc, match",
+    [
+        ("p0 = 1\n[[segment]]\nsteps = 1\n", KeyError, "p0"),
+        ("p0_kPa = 1\n", ValueError, "no \\[\\[segment\\]\\]"),
+        ("[[segment]]\nsteps = 1\nsig_xx = 0\nsig_yy = 0\nsig_zz = 0\nsig_yz = 0\nsig_xz = 0\nsig_xy = 0\ncolour = 1\n",
+         KeyError, "colour"),
+        ("[[segment]]\nsig_xx = 0\n", ValueError, "missing 'steps'"),
+        ("[[segment]]\nsteps = 1\nsig_xx = 0\n", ValueError, "segment 0: component 'yy'"),
+        ("[[segment\n", ValueError, "not valid TOML"),
+    ],
+)
+def test_toml_path_bad_input(tmp_path, text, exc, match):
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    with pytest.raises(exc, match=match):
+        LoadPath.from_toml(f)
