@@ -173,11 +173,13 @@ def _run(args) -> int:
             path = driver.LoadPath.from_toml(args.csv)
         else:
             path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
-        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress,
-                              log=out / "path.steps.csv")
-        res.to_csv(out / "path_path.csv")
-        (out / "path.steps.csv").unlink(missing_ok=True)
-        runs.append(("path", {}, res))
+        tag = Path(args.csv).stem
+        log = out / f"path_{tag}.steps.csv"
+        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress, log=log)
+        res.metadata.update(test="path", path_file=str(args.csv))
+        res.to_csv(out / f"path_{tag}.csv")
+        log.unlink(missing_ok=True)
+        runs.append((tag, {}, res))
     else:
         sweeps = _SWEEPS[args.test]
         fn = getattr(driver, stem)

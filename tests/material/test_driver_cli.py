@@ -44,7 +44,7 @@ def test_element_path_replays_csv(tmp_path):
     f.write_text("\n".join(rows) + "\n")
     rc = main(["element", "path", str(f), "--substeps", "3", "--out", str(tmp_path / "o"), "--no-progress"])
     assert rc == 0
-    res = read_csv(tmp_path / "o" / "path_path.csv")
+    res = read_csv(tmp_path / "o" / "path_lab.csv")
     assert len(res) == 16
     assert np.abs(res["sig_xx_kPa"] + 50.0).max() < 1e-8 * np.abs(res.stress).max()
 
