@@ -85,6 +85,61 @@ def _element_stiffness(dN, dx, D, out):
     return out
 
 
+@njit(cache=True, parallel=True)
+def _element_stiffness_bbar(dN, g, c, dx, D, out):
+    """B-bar version: K_e = sum_q dx Bbar[a,i,j,m] D[j,m,k,l] Bbar[b,n,k,l] with
+    Bbar[a,i,j,k] = (delta_ij dN[a,k] + delta_ik dN[a,j]) / 2 + c delta_jk g[a,i]."""
+    nel, nq, nbf, dim = dN.shape
+    for e in prange(nel):
+        Bq = np.empty((nbf, dim, dim, dim))
+        G = np.empty((nbf, dim, dim, dim))
+        for r in range(nbf * dim):
+            for cc in range(nbf * dim):
+                out[e, r, cc] = 0.0
+        for q in range(nq):
+            w = dx[e, q]
+            for a in range(nbf):
+                for i in range(dim):
+                    for j in range(dim):
+                        for k in range(dim):
+                            v = 0.0
+                            if i == j:
+                                v += 0.5 * dN[e, q, a, k]
+                            if i == k:
+                                v += 0.5 * dN[e, q, a, j]
+                            if j == k:
+                                v += c * g[e, q, a, i]
+                            Bq[a, i, j, k] = v
+            for a in range(nbf):
+                for i in range(dim):
+                    for k in range(dim):
+                        for l in range(dim):
+                            s = 0.0
+                            for j in range(dim):
+                                for m in range(dim):
+                                    s += Bq[a, i, j, m] * D[e, q, j, m, k, l]
+                            G[a, i, k, l] = w * s
+            for a in range(nbf):
+                for i in range(dim):
+                    r = a * dim + i
+                    for b in range(nbf):
+                        for n in range(dim):
+                            s = 0.0
+                            for k in range(dim):
+                                for l in range(dim):
+                                    s += G[a, i, k, l] * Bq[b, n, k, l]
+                            out[e, r, b * dim + n] += s
+    return out
+
+
+def bbar_operator_reference(dN, g, c):
+    """Bbar[e,q,a,i,j,k] (numpy, for tests) of the B-bar strain operator."""
+    dim = dN.shape[-1]
+    I = np.eye(dim)
+    sym = 0.5 * (np.einsum("ij,eqak->eqaijk", I, dN) + np.einsum("ik,eqaj->eqaijk", I, dN))
+    return sym + c * np.einsum("jk,eqai->eqaijk", I, g)
+
+
 def element_stiffness_reference(dN, dx, D):
     """Plain numpy version of :func:`_element_stiffness` (for tests)."""
     K = np.einsum("eqaj,eqijkl,eqbl,eq->eaibk", dN, D, dN, dx)
@@ -101,6 +156,12 @@ class Discretisation:
         MeshHex1, MeshTet1 (3D) or MeshQuad1, MeshTri1 (plane strain, in the x-y plane).
     order : int
         1 (linear) or 2 (quadratic) Lagrange elements.
+    volumetric : str
+        "standard" (strain = sym grad u) or "bbar": the in-plane (2D) or full (3D) volumetric strain
+        is replaced by its element-wise L2 projection onto constants (linear elements: mean dilatation,
+        Q1/P0) or onto linear polynomials (quadratic elements: Q2/P1), which removes the volumetric
+        locking of nearly incompressible plastic flow: eps_bar = eps + (theta_bar - theta) I_dim / dim
+        (plane strain: eps_zz stays 0).
 
     Attributes
     ----------
@@ -114,8 +175,12 @@ class Discretisation:
         Number of quadrature points, nelems * nqp (element-major, see :mod:`femgran.state`).
     """
 
-    def __init__(self, mesh, order: int = 1):
+    def __init__(self, mesh, order: int = 1, volumetric: str = "standard"):
         from femgran.mesh import check_mesh
+
+        if volumetric not in ("standard", "bbar"):
+            raise ValueError(f"volumetric = {volumetric!r}: allowed 'standard' or 'bbar'")
+        self.volumetric = volumetric
 
         element, intorder = element_for(mesh, order)
         self.mesh = mesh
@@ -137,6 +202,23 @@ class Discretisation:
         sd = b.element_dofs.T  # (nel, nbf) scalar dofs
         self.edofs = np.ascontiguousarray((self.dim * sd[:, :, None] + np.arange(self.dim)).reshape(self.nelems, -1))
         self._pattern = None
+        self.g = self._bbar_correction() if volumetric == "bbar" else None
+        self.c = 1.0 / self.dim
+
+    def _bbar_correction(self) -> np.ndarray:
+        """g[e,q,a,i] = (Pi dN_a,i)(q) - dN_a,i(q), Pi the element L2 projection onto P0 (order 1) or P1."""
+        x = np.asarray(self.basis.global_coordinates())  # (dim, nel, nq)
+        w = self.dx
+        if self.order == 1:
+            phi = np.ones((1,) + w.shape)
+        else:
+            xc = ((x * w).sum(axis=2) / w.sum(axis=1))[:, :, None]
+            h = w.sum(axis=1) ** (1.0 / self.dim)  # element size, for conditioning
+            phi = np.concatenate([np.ones((1,) + w.shape), (x - xc) / h[None, :, None]])
+        M = np.einsum("men,pen,en->emp", phi, phi, w)
+        Minv = np.linalg.inv(M)
+        P = np.einsum("meq,emp,per,er->eqr", phi, Minv, phi, w)  # (nel, nq, nq)
+        return np.einsum("eqr,erai->eqai", P, self.dN) - self.dN
 
     # ------------------------------------------------------------------ DOF helpers
     def vector_dofs(self, scalar_dofs, components=None) -> np.ndarray:
@@ -170,15 +252,26 @@ class Discretisation:
         return out
 
     def strain(self, u: np.ndarray) -> np.ndarray:
-        """Small strain sym(grad u) at the points, (N, 3, 3), tension positive (plane strain: eps_zz = 0)."""
+        """Small strain sym(grad u) (or its B-bar form) at the points, (N, 3, 3), tension positive
+        (plane strain: eps_zz = 0)."""
         g = self.gradient(u)
-        return 0.5 * (g + np.swapaxes(g, 1, 2))
+        eps = 0.5 * (g + np.swapaxes(g, 1, 2))
+        if self.g is not None:
+            ue = np.asarray(u)[self.edofs].reshape(self.nelems, self.nbf, self.dim)
+            dtheta = np.einsum("eai,eqai->eq", ue, self.g).ravel()
+            idx = np.arange(self.dim)
+            eps[:, idx, idx] += self.c * dtheta[:, None]
+        return eps
 
     def internal_force(self, stress: np.ndarray) -> np.ndarray:
         """f_int_(a,i) = sum_q dx sigma_ij dN_a,j, (ndofs,) [kN]; ``stress`` (N, 3, 3) kPa."""
         d = self.dim
         s = np.asarray(stress)[:, :d, :d].reshape(self.nelems, self.nqp, d, d)
-        fe = np.einsum("eqij,eqaj,eq->eai", s, self.dN, self.dx, optimize=True).reshape(self.nelems, -1)
+        fe = np.einsum("eqij,eqaj,eq->eai", s, self.dN, self.dx, optimize=True)
+        if self.g is not None:
+            tr = np.trace(s, axis1=2, axis2=3)
+            fe = fe + self.c * np.einsum("eq,eqai,eq->eai", tr, self.g, self.dx, optimize=True)
+        fe = fe.reshape(self.nelems, -1)
         return np.bincount(self.edofs.ravel(), weights=fe.ravel(), minlength=self.ndofs)
 
     def _ensure_pattern(self):
@@ -205,6 +298,8 @@ class Discretisation:
         D = np.ascontiguousarray(D).reshape(self.nelems, self.nqp, d, d, d, d)
         m = self.nbf * d
         out = np.empty((self.nelems, m, m))
+        if self.g is not None:
+            return _element_stiffness_bbar(self.dN, self.g, self.c, self.dx, D, out)
         return _element_stiffness(self.dN, self.dx, D, out)
 
     def stiffness(self, tangent: np.ndarray) -> sp.csr_matrix:

@@ -2,7 +2,9 @@
 
 The algorithm (one load step from load factor t_n to t_{n+1} = t_n + dt):
 
-1. Displacement increment du: prescribed DOFs get u_D(t_{n+1}) - u_n, the others start at zero.
+1. Displacement increment du: prescribed DOFs get u_D(t_{n+1}) - u_n; the others start from the
+   tangent predictor K_n du = f_ext(t_{n+1}) - f_int(sigma_n) with the last converged tangent K_n
+   (or at zero with ``predictor="none"``).
 2. Newton iteration k: strain increment d_eps = B du at every quadrature point; ONE material call
    ``update(d_eps, sigma_n, state_n)`` from the committed start-of-step state gives sigma, the state and
    the consistent tangent D; residual r = f_int(sigma) - f_ext(t_{n+1}) on the free DOFs.
@@ -71,6 +73,8 @@ class SolverOptions:
     max_iter : Newton iterations per try; max_cuts : successive cut-backs before a clean stop.
     dt_min : smallest load-factor step; grow : dt factor after a step that took <= easy_iter iterations.
     line_search : backtracking steps (0 disables).
+    predictor : "tangent" (first guess of each step from the last converged tangent, so the prescribed
+    displacements spread smoothly into the body) or "none" (prescribed DOFs only, the rest zero).
     linear_solver : "superlu" (direct), "amg-gmres" (pyamg smoothed aggregation preconditioning GMRES)
     or "ilu-gmres"; krylov_tol : relative tolerance of the Krylov solvers.
     """
@@ -83,12 +87,15 @@ class SolverOptions:
     grow: float = 1.5
     easy_iter: int = 6
     line_search: int = 4
+    predictor: str = "tangent"
     linear_solver: str = "superlu"
     krylov_tol: float = 1e-10
 
     def __post_init__(self):
         if self.linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"linear_solver = {self.linear_solver!r}: allowed {LINEAR_SOLVERS}")
+        if self.predictor not in ("tangent", "none"):
+            raise ValueError(f"predictor = {self.predictor!r}: allowed 'tangent' or 'none'")
         if not (0 < self.tol < 1):
             raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
@@ -220,6 +227,7 @@ class NewtonSolver:
         self.constrained = np.unique(all_d)
         self.free = np.setdiff1d(np.arange(n), self.constrained)
         self._near_nullspace = None
+        self._committed_tangent = None
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -262,11 +270,34 @@ class NewtonSolver:
             self._near_nullspace = np.column_stack(modes)[self.free]
         return self._near_nullspace
 
+    def _solve_free(self, K, rhs_free):
+        opt = self.options
+        Kff = K[self.free][:, self.free]
+        ns = self._nullspace() if opt.linear_solver == "amg-gmres" else None
+        x = linear_solve(Kff, rhs_free, opt.linear_solver, opt.krylov_tol, ns)
+        if not np.all(np.isfinite(x)):
+            raise _StepFailure("linear solve failed (singular tangent?)")
+        return x
+
+    def _predict(self, du, t_new):
+        """Tangent predictor: K_n du = f_ext(t_new) - f_int(sigma_n) with the prescribed part of du."""
+        if self._committed_tangent is None:
+            _, self._committed_tangent, _ = self.points.evaluate(np.zeros((self.disc.n_points, 3, 3)))
+            self.points.revert()
+        K = self.disc.stiffness(self._committed_tangent)
+        r0 = self.disc.internal_force(self.points.stress) - self.external(t_new)
+        rhs = -(r0 + K @ du)[self.free]
+        du = du.copy()
+        du[self.free] = self._solve_free(K, rhs)
+        return du
+
     def step(self, t_new: float):
         """Try one step to load factor t_new from the committed state. Returns (du, iterations, residuals)."""
         opt = self.options
         du = np.zeros(self.disc.ndofs)
         du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
+        if opt.predictor == "tangent":
+            du = self._predict(du, t_new)
         r, tangent = self._evaluate(du, t_new)
         rf, ref = self._norms(r, t_new)
         residuals = [rf / ref]
@@ -274,12 +305,8 @@ class NewtonSolver:
             if residuals[-1] <= opt.tol:
                 return du, it - 1, residuals
             K = self.disc.stiffness(tangent)
-            Kff = K[self.free][:, self.free]
             ddu = np.zeros_like(du)
-            ns = self._nullspace() if opt.linear_solver == "amg-gmres" else None
-            ddu[self.free] = linear_solve(Kff, -r[self.free], opt.linear_solver, opt.krylov_tol, ns)
-            if not np.all(np.isfinite(ddu)):
-                raise _StepFailure("linear solve failed (singular tangent?)")
+            ddu[self.free] = self._solve_free(K, -r[self.free])
             s = 1.0
             for ls in range(opt.line_search + 1):
                 try:
@@ -349,6 +376,7 @@ class NewtonSolver:
                     bar.set_postfix_str(f"cut-back ({exc.reason}), dt={dt:.3g}")
                 continue
             self.points.commit()
+            self._committed_tangent = self.points.tangent
             self.u = self.u + du
             self.t = t_new
             n_step += 1

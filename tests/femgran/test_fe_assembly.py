@@ -87,3 +87,29 @@ def test_point_state_commit_and_revert():
     ps.commit()
     assert ps.state["eq_plastic_strain"].min() > 0
     np.testing.assert_allclose(np.sqrt(1.5) * np.linalg.norm(ps.stress[0] - np.trace(ps.stress[0]) / 3 * np.eye(3)), 10.0)
+
+
+@pytest.mark.parametrize("name,make,order", [m for m in MESHES if m[0] in ("hex1", "hex2", "quad1", "quad2")],
+                         ids=["hex1", "hex2", "quad1", "quad2"])
+def test_bbar_tangent_is_the_derivative_of_the_bbar_internal_force(name, make, order, rng):
+    from femgran.assembly import bbar_operator_reference
+
+    mesh = _distort(make())
+    d = Discretisation(mesh, order, volumetric="bbar")
+    D = _random_tangent(d.n_points, rng)
+    K = d.stiffness(D)
+    u = rng.normal(size=d.ndofs)
+    sig = np.einsum("nijkl,nkl->nij", D, d.strain(u))
+    np.testing.assert_allclose(d.internal_force(sig), K @ u, rtol=1e-10, atol=1e-10 * np.abs(K @ u).max())
+    # numba kernel vs the plain numpy B-bar operator
+    dim = d.dim
+    Dd = np.ascontiguousarray(D[:, :dim, :dim, :dim, :dim]).reshape(d.nelems, d.nqp, *(dim,) * 4)
+    Bb = bbar_operator_reference(d.dN, d.g, d.c)
+    K_ref = np.einsum("eqaijm,eqjmkl,eqbnkl,eq->eaibn", Bb, Dd, Bb, d.dx).reshape(d.element_matrices(D).shape)
+    np.testing.assert_allclose(d.element_matrices(D), K_ref, rtol=1e-11, atol=1e-11 * np.abs(K_ref).max())
+    # the projected volumetric strain of a quadratic (order 2) / linear (order 1) field is its projection:
+    # a linear displacement keeps its exact (constant) strain
+    H = np.arange(1.0, 1.0 + dim * dim).reshape(dim, dim) * 1e-3
+    ul = (d.dof_coordinates() @ H.T).ravel()
+    eps = d.strain(ul)[:, :dim, :dim]
+    np.testing.assert_allclose(eps, np.broadcast_to(0.5 * (H + H.T), eps.shape), atol=1e-14)

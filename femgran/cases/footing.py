@@ -1,0 +1,166 @@
+"""Strip footing on a layer of soil (plane strain, y vertical, upwards).
+
+Domain: x in [-L, L], y in [-D, 0] (L = ``extent`` B, D = ``depth`` B), the footing of width B on the
+surface, centred at x = 0. Sides: u_x = 0; base: u_x = u_y = 0. The rigid footing is pushed down in
+displacement control (u_y = -settlement * t on the soil nodes under it); ``rough=True`` also fixes
+their u_x (no slip), ``rough=False`` leaves it free (smooth footing).
+
+Self weight: body force (0, -gamma) and the geostatic in-situ stress sigma_yy = -(gamma |y| + q_s),
+sigma_xx = sigma_zz = K0 sigma_yy (tension +), with the surcharge q_s applied as a pressure on the
+surface beside the footing (and in the in-situ stress under it). Material axes (CPA): the deposition axis
+e2 is at ``alpha_deg`` from the vertical y in the x-y plane (:func:`femgran.cases.common.axes_plane_strain`).
+
+History columns: ``settlement_m``, ``pressure_kPa`` (mean footing pressure = vertical platen force / B,
+compression +). ``bearing_capacity_kPa``: the largest mean pressure reached (the limit load when the
+curve has flattened; check ``history`` for the plateau). For a weightless von Mises soil this is
+Prandtl's (2 + pi) c_u with c_u = sigma_y / sqrt(3) (plane strain).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from femgran.cases.common import check_positive, make_material, material_record, run_folder, solver_options
+from femgran.solver import Dirichlet, NewtonSolver
+
+__all__ = ["footing", "footing_mesh", "prandtl_pressure"]
+
+
+def prandtl_pressure(c_u_kPa: float) -> float:
+    """Prandtl's limit pressure of a strip footing on a weightless Tresca soil, (2 + pi) c_u [kPa]."""
+    return (2.0 + np.pi) * float(c_u_kPa)
+
+
+def footing_mesh(width_m: float = 1.0, *, extent: float = 4.0, depth: float = 3.0, resolution: int = 4,
+                 growth: float = 1.2, kind: str = "quad"):
+    """Graded rectangle for the strip footing (y up, surface at y = 0, footing edges on nodes).
+
+    ``resolution``: elements across the footing half-width; the cells grow by ``growth`` away from it.
+    """
+    from femgran.mesh import graded, rectangle
+
+    B = check_positive("width_m", width_m)
+    n = int(resolution)
+    if n < 1:
+        raise ValueError(f"resolution = {resolution!r}: must be >= 1")
+    h = 0.5 * B / n
+    inner = np.linspace(-B, B, 4 * n + 1)  # footing edges at +-B/2 are nodes
+    L, D = extent * B, depth * B
+
+    def n_out(length):  # number of growing cells so that the first is ~h
+        if growth == 1.0:
+            return max(1, int(round(length / h)))
+        return max(1, int(np.ceil(np.log(1 + length * (growth - 1) / h) / np.log(growth))))
+
+    right = graded(L - B, n_out(L - B), growth, start=B)[1:]
+    x = np.concatenate([-right[::-1], inner, right])
+    y = -graded(D, n_out(D), growth)[::-1]
+    return rectangle(x, y, kind=kind)
+
+
+def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surcharge_kPa: float = 0.0,
+            rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
+            K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
+            depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
+            linear_solver: str = "superlu", write_every: int = 1, plots: bool = True):
+    """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
+
+    Parameters
+    ----------
+    material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
+    width_m : footing width B [m]; unit_weight : gamma [kN/m^3] (0: weightless); surcharge_kPa : q_s [kPa].
+    rough : rough (no slip) or smooth footing; alpha_deg : bedding angle (e2 from vertical) [deg].
+    settlement_m : final settlement (default 0.1 B); steps : nominal load steps.
+    K0 : earth pressure coefficient at rest of the in-situ stress.
+    mesh : None (:func:`footing_mesh` with ``resolution``, ``extent``, ``depth``) or a mesh file path
+        (2D, surface at y = 0, footing centred at x = 0).
+    order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
+    volumetric : "bbar" (default: projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking)
+        or "standard" (see :class:`femgran.assembly.Discretisation`).
+
+    Returns
+    -------
+    femgran.solver.Solution with ``bearing_capacity_kPa`` and history columns ``settlement_m``,
+    ``pressure_kPa``.
+    """
+    from femgran.assembly import Discretisation
+    from femgran.mesh import load_mesh
+
+    B = check_positive("width_m", width_m)
+    gamma = check_positive("unit_weight", unit_weight, allow_zero=True)
+    qs = check_positive("surcharge_kPa", surcharge_kPa, allow_zero=True)
+    K0 = check_positive("K0", K0)
+    settle = 0.1 * B if settlement_m is None else check_positive("settlement_m", settlement_m)
+    m = footing_mesh(B, extent=extent, depth=depth, resolution=resolution) if mesh is None else load_mesh(mesh)
+    if m.dim() != 2:
+        raise ValueError(f"mesh {mesh!r}: the footing is plane strain; a 2D mesh is required")
+    if abs(m.p[1].max()) > 1e-9 * B or m.p[0].min() >= -B / 2 or m.p[0].max() <= B / 2:
+        raise ValueError(f"mesh {mesh!r}: the surface must be y = 0 and the domain must contain |x| <= B/2")
+    mat = make_material(material, alpha_deg, plane_strain=True)
+    d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshQuad1" else "standard")
+    b = m.boundaries
+    tol = 1e-9 * B
+    top_facets = b["top"]
+    fx = m.p[0, m.facets[:, top_facets]].mean(axis=0)
+    under = top_facets[np.abs(fx) < B / 2 - tol]
+    beside = top_facets[np.abs(fx) > B / 2 - tol]
+    foot = d.facet_scalar_dofs(under)
+    if foot.size == 0:
+        raise ValueError("footing: no mesh facet under the footing; refine the mesh")
+    bcs = [Dirichlet(d.vector_dofs(d.facet_scalar_dofs(b["bottom"])), 0.0, name="base"),
+           Dirichlet(d.vector_dofs(d.facet_scalar_dofs(np.concatenate([b["left"], b["right"]])), [0]), 0.0),
+           Dirichlet(d.vector_dofs(foot, [1]), -settle, name="footing")]
+    if rough:
+        bcs.append(Dirichlet(d.vector_dofs(foot, [0]), 0.0))
+    f_fixed = np.zeros(d.ndofs)
+    if gamma > 0:
+        f_fixed += d.body_force(np.array([0.0, -gamma]))
+    if qs > 0 and beside.size:
+        f_fixed += d.pressure_force(beside, qs)
+    xq = d.quadrature_points()
+    sv = -(gamma * np.abs(xq[:, 1]) + qs)
+    sigma0 = np.zeros((d.n_points, 3, 3))
+    sigma0[:, 1, 1] = sv
+    sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
+    solver = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
+                          options=solver_options(linear_solver))
+    fy_dofs = bcs[2].dofs
+
+    def observe(s):
+        r = d.internal_force(s.points.stress) - s.external(s.t)
+        return {"settlement_m": -float(np.mean(s.u[fy_dofs])), "pressure_kPa": -float(np.sum(r[fy_dofs])) / B}
+
+    out_dir = run_folder(out)
+    writer = None
+    params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
+              "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
+              "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
+              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "material": material_record(mat),
+              "ndofs": d.ndofs, "vertical_axis": "y (up)"}
+    if out_dir is not None:
+        from femgran.output import SeriesWriter, write_parameters
+
+        write_parameters(out_dir / "parameters.json", params)
+        writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
+    sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    sol.extra.update(params=params, bearing_capacity_kPa=float(np.nanmax(sol.history["pressure_kPa"])))
+    if out_dir is not None and plots:
+        _plots(sol, out_dir)
+    return sol
+
+
+def _plots(sol, out_dir: Path) -> None:
+    from femgran.output import plot_field, plot_history, read_pvd
+
+    plot_history(sol.history, "settlement_m", "pressure_kPa", out_dir / "load_settlement.png",
+                 xlabel="settlement [m]", ylabel="mean footing pressure [kPa]", title="strip footing")
+    entries = read_pvd(out_dir / "footing.pvd")
+    if entries:
+        field = "eq_plastic_strain" if "eq_plastic_strain" in sol.state else "q_kPa"
+        if "plastic_strain" in sol.state:
+            field = "plastic_strain"
+            plot_field(entries[-1][1], field, out_dir / "mechanism_plastic_shear.png", component=1)
+        else:
+            plot_field(entries[-1][1], field, out_dir / "mechanism.png")
