@@ -27,7 +27,7 @@ def _hardening_state(model, n, rng):
     scale = rng.uniform(0.5, 2.0, size=n)[:, None, None]
     de = base[None] * scale
     for _ in range(6):
-        sig, state, _ = model.update(de, sig, state, tangent=False)
+        sig, state, _ = model.update(de, sig, state)
     return sig, state, de
 
 

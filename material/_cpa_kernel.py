@@ -267,14 +267,36 @@ def _is_strictly_compressive(sig, normals):
 
 @njit(cache=True)
 def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp):
+                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred):
     """Newton with line search for one (sub)step; sig receives the solution. Returns (ok, iterations).
+
+    ``pred`` (6, 6) is the consistent tangent of the point's previous plastic step (pred[0, 0] == 0 when
+    there is none): the predictor sigma_n + pred : d_eps starts Newton when it beats sigma_n.
 
     On return with ok, J holds the LU factors of the Jacobian at the solution and active/dkap/work
     describe the loading planes there.
     """
     M = normals.shape[0]
-    # elastic predictor
+    de_norm = 0.0
+    for i in range(6):
+        de_norm += de[i] * de[i]
+    de_norm = np.sqrt(de_norm)
+    # a point that was plastic in its last step most likely goes on loading: try the tangent predictor
+    # of that step first; Newton starts there when it is admissible and clearly closer than sigma_n
+    # (whose residual is about |d_eps|); otherwise the elastic trial decides ...
+    if pred[0, 0] != 0.0:
+        for i in range(6):
+            acc = sig_n[i]
+            for j in range(6):
+                acc += pred[i, j] * de[j]
+            sig[i] = acc
+        feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
+                             eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
+        if feas and rn < 0.5 * de_norm:
+            return _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+                           comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn,
+                           de_norm)
+    # ... elastic trial stress
     for i in range(6):
         acc = sig_n[i]
         for j in range(6):
@@ -296,8 +318,8 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
                     J[i, j] = comp[i, j]
             ok = _lu_factor(J, piv)
             return ok, 0
-    # plastic: start from the converged stress of the previous step (feasible by construction), or from
-    # the isotropic part of the trial stress when that one sits on the apex (all-zero or tensile planes)
+    # plastic: Newton from the converged stress of the previous step (admissible by construction), or
+    # from the isotropic part of the trial stress when that one sits on the apex (all-zero or tensile planes)
     if _is_strictly_compressive(sig_n, normals):
         for i in range(6):
             sig[i] = sig_n[i]
@@ -307,14 +329,20 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
             return False, 0
         for i in range(6):
             sig[i] = p if i < 3 else 0.0
-    de_norm = 0.0
-    for i in range(6):
-        de_norm += de[i] * de[i]
-    de_norm = np.sqrt(de_norm)
     feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
                          eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
     if not feas:
         return False, 0
+    return _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+                   comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn, de_norm)
+
+
+@njit(cache=True)
+def _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+            comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn, de_norm):
+    """Newton iterations from ``sig`` (r, J already evaluated there, |r| = rn), backtracking line search."""
+    if rn <= tol * (de_norm + 1e-300) or rn <= 1e-15:
+        return _lu_factor(J, piv), 0
     for it in range(1, maxit + 1):
         if not _lu_factor(J, piv):
             return False, it
@@ -347,7 +375,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
 @njit(cache=True)
 def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A,
                   inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
-                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats):
+                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats, pred):
     """One Gauss point: adaptive sub-stepping around :func:`_solve_substep`, chain-rule tangent.
 
     Returns (status, substeps, iterations, cutoff).
@@ -421,7 +449,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             _plane_strengths(eps_k, nn6, om6, coeffs, eta0, beta, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                      eta_c_ratio, comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work,
-                                     r, piv, delta, trial, tmp)
+                                     r, piv, delta, trial, tmp, pred)
             total_it += its
             if not ok:
                 failed = True
@@ -432,12 +460,13 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                 for i in range(6):
                     for j in range(6):
                         acc = 0.0
-                        for l in range(6):
-                            acc += comp[i, l] * Dsig[l, j]
+                        if k > 1:
+                            for l in range(6):
+                                acc += comp[i, l] * Dsig[l, j]
                         B[i, j] = acc + (1.0 / m if i == j else 0.0)
                 for a in range(M):
-                    if not active[a]:
-                        continue
+                    if not active[a] or (k == 1 and beta == 0.0):
+                        continue  # (Dkap_0 = 0: nothing to add in the first sub-step without induced terms)
                     n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
                     t0, t1, t2 = _traction(sig, n0, n1, n2)
                     tn = t0 * n0 + t1 * n1 + t2 * n2
@@ -446,10 +475,11 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
                     wt = weights[a] * inv_t
                     dil = work[a, 4]
-                    for i in range(6):
-                        g = wt * (sn6[i] - dil * nn6[a, i])
-                        for j in range(6):
-                            B[i, j] += g * Dk[a, j]
+                    if k > 1:
+                        for i in range(6):
+                            g = wt * (sn6[i] - dil * nn6[a, i])
+                            for j in range(6):
+                                B[i, j] += g * Dk[a, j]
                     if beta != 0.0:
                         sigma_N = work[a, 0]
                         etah = work[a, 2]
@@ -476,8 +506,9 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     _lu_solve(J, piv, col)
                     for i in range(6):
                         Dsig[i, j] = col[i]
-                # Dkap_k = kappa' d etah/d sigma . Dsig_k + d kappa/d eta_f d eta_f/d eps frac  (active)
-                for a in range(M):
+                # Dkap_k = kappa' d etah/d sigma . Dsig_k + d kappa/d eta_f d eta_f/d eps frac  (active);
+                # needed only by a following sub-step
+                for a in range(M if k < m else 0):
                     if not active[a]:
                         for j in range(6):
                             Dk_new[a, j] = Dk[a, j]
@@ -505,7 +536,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                             Dk_new[a, i] += scale * (nn6[a, i] - 1.0 / 3.0)
                         for i in range(3, 6):
                             Dk_new[a, i] += scale * nn6[a, i]
-                for a in range(M):
+                for a in range(M if k < m else 0):
                     for j in range(6):
                         Dk[a, j] = Dk_new[a, j]
             for a in range(M):
@@ -537,13 +568,14 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
 @njit(cache=True, parallel=True)
 def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A, inv_t,
               eta_c_ratio, comp, stiff, iopt, fopt, sig_out, kap_out, D_out, status, substeps, iterations, cutoff,
-              mobilised):
+              mobilised, pred):
     """Update N Gauss points (Mandel vectors). Arrays:
 
     sig_n, de, eps_n (N, 6); kap_n (N, M); normals (M, 3) global; nn6 (M, 6) Mandel(n n);
     weights, cohesion (M,); om6 (6,) Mandel(Omega) global; coeffs (K,) a1..aK;
     comp, stiff (6, 6) elastic compliance / stiffness (Mandel); iopt = (maxit, max_level, want_tangent);
     fopt = (tol, barrier, cutoff_stiffness).
+    pred (N, 6, 6) the tangent of each point's last plastic step (zeros where none) for the predictor.
     Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6), status, substeps, iterations (N,) int,
     cutoff (N,) bool, mobilised (N,) = max_a etah_a / eta_f,a at the end of the step.
     """
@@ -564,7 +596,7 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
             st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,
                                             om6, coeffs, eta0, beta, zeta, A, inv_t, eta_c_ratio, comp, stiff,
                                             iopt, fopt, sig_out[p], kap_out[p], D_out[p], bufs_f, bufs_b, piv,
-                                            Dk, Dk_new, vecs, mats)
+                                            Dk, Dk_new, vecs, mats, pred[p])
             status[p] = st
             substeps[p] = m
             iterations[p] = its

@@ -219,6 +219,7 @@ class CPAModel:
             "iterations": np.zeros(n, dtype=np.int32),
             "tension_cutoff": np.zeros(n, dtype=bool),
             "mobilised_ratio": np.zeros(n),
+            "predictor": np.zeros((n, 6, 6)),
         }
 
     # ----------------------------------------------------------------------------- update
@@ -237,7 +238,9 @@ class CPAModel:
         -------
         stress : (N, 3, 3) [kPa]
         state : dict (new arrays): strain, plastic_strain (N,3,3); kappa (N,M) [m]; status (N,) int8;
-            step_ratio, mobilised_ratio (N,); substeps, iterations (N,) int32; tension_cutoff (N,) bool.
+            step_ratio, mobilised_ratio (N,); substeps, iterations (N,) int32; tension_cutoff (N,) bool;
+            predictor (N,6,6): the Mandel tangent of the point's last plastic step, used only as the
+            starting guess of the next Newton solve (a missing key is allowed and means none).
         tangent : (N, 3, 3, 3, 3) d stress / d d_strain [kPa], or None.
         """
         de, sig = check_batch(d_strain, stress)
@@ -268,6 +271,10 @@ class CPAModel:
             D_arg = D
         else:
             D_arg = np.empty((n, 6, 6))  # untouched scratch of the right shape (kernel writes nothing)
+        pred = state.get("predictor")
+        if pred is None or pred.shape != (n, 6, 6):
+            pred = np.zeros((n, 6, 6))
+        pred = np.ascontiguousarray(pred, dtype=float)
         prev_threads = None
         if self.threads is not None:
             import numba
@@ -277,7 +284,7 @@ class CPAModel:
         try:
             _k.cpa_batch(sig6, de6, eps6, kap_n, self.normals, self._nn6, self.weights, self._cohesion, self._om6,
                          self._coeffs, p.eta0, p.beta, p.zeta, p.A, 1.0 / p.t, p.eta_c_ratio, self._comp, self._stiff,
-                         iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised)
+                         iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised, pred)
         finally:
             if prev_threads is not None:
                 import numba
@@ -303,6 +310,8 @@ class CPAModel:
             "iterations": iterations,
             "tension_cutoff": cutoff,
             "mobilised_ratio": mobilised,
+            # Mandel tangent of the last plastic step: the Newton predictor of the next one
+            "predictor": (np.where(((iterations > 0) & ok & ~cutoff)[:, None, None], D, pred) if tangent else pred),
         }
         if failed.any():
             self._record_failure(de, sig, state, np.flatnonzero(failed))
