@@ -81,7 +81,7 @@ def _mandel1(a: np.ndarray) -> np.ndarray:
 class _Options:
     maxit: int = 30
     max_substep_level: int = 6
-    tol: float = 1e-11
+    tol: float = 1e-10
     barrier: float = 1e-9
     cutoff_stiffness: float = 1e-6
 
@@ -113,7 +113,7 @@ class CPAModel:
     """
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
-                 maxit: int = 30, max_substep_level: int = 6, tol: float = 1e-11, cutoff_stiffness: float = 1e-6,
+                 maxit: int = 30, max_substep_level: int = 6, tol: float = 1e-10, cutoff_stiffness: float = 1e-6,
                  replay_dir: str | os.PathLike | None = None, threads: int | None = None):
         from material.planes import integration_rule
 
