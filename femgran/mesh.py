@@ -102,7 +102,7 @@ def load_mesh(path):
         raise FileNotFoundError(f"mesh file {str(p)!r}: not found")
     try:
         m = meshio.read(p)
-    except Exception as exc:  # meshio raises many types for unreadable files
+    except (Exception, SystemExit) as exc:  # meshio raises many types (even SystemExit) for unreadable files
         raise ValueError(f"mesh file {str(p)!r}: unreadable by meshio ({exc})") from None
     kinds = {"hexahedron": skfem.MeshHex, "tetra": skfem.MeshTet, "quad": skfem.MeshQuad, "triangle": skfem.MeshTri}
     for k, cls in kinds.items():

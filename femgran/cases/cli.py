@@ -1,5 +1,225 @@
-"""``femgran triaxial|footing|biaxial|run`` subcommands."""
+"""``femgran triaxial|footing|biaxial|run`` subcommands (boundary-value problems).
+
+Examples::
+
+    femgran triaxial --alpha 0 45 90 --platens rough            # -> out/triaxial/alpha_0 ... + comparison
+    femgran footing --alpha 0 30 60 90 --surcharge 10           # bearing capacity vs bedding angle
+    femgran footing --law von_mises --E 30000 --yield 173.2 --unit-weight 0   # Prandtl check
+    femgran biaxial --resolution 8 16 32                        # three meshes on one plot
+    femgran run case.toml                                       # a case file (femgran.cases.casefile)
+
+A sweep (several values of --alpha or --resolution) writes one run folder per value under --out,
+plus ``summary.csv`` and a comparison PNG.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["register"]
+
+
+def _parse_set(items):
+    out = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ValueError(f"--set {item!r}: expected NAME=VALUE")
+        k, v = item.split("=", 1)
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise ValueError(f"--set {item!r}: VALUE must be a number") from None
+    return out
+
+
+def _material(args, alpha, plane_strain):
+    from femgran.cases.casefile import build_material
+
+    if args.law == "cpa":
+        spec = {"law": "cpa", "preset": args.preset, "set": _parse_set(args.set)}
+        if args.parameters:
+            spec = {"law": "cpa", "parameters": args.parameters, "set": _parse_set(args.set)}
+    elif args.law == "von_mises":
+        spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
+    elif args.law == "drucker_prager":
+        spec = {"law": "drucker_prager", "E_kPa": args.E, "nu": args.nu, "cohesion_kPa": args.cohesion,
+                "friction_deg": args.friction}
+    else:
+        spec = {"law": "linear_elastic", "E_kPa": args.E, "nu": args.nu}
+    return build_material(spec, alpha, plane_strain)
+
+
+def _common(p, default_out):
+    g = p.add_argument_group("material")
+    g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "linear_elastic"], default="cpa")
+    g.add_argument("--preset", default="ottawa_c109", help="CPA preset (default ottawa_c109)")
+    g.add_argument("--parameters", help="CPA parameter file (TOML/JSON) instead of a preset")
+    g.add_argument("--set", action="append", metavar="NAME=VALUE", help="change a CPA parameter (repeatable)")
+    g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
+    g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
+    g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")
+    g.add_argument("--cohesion", type=float, default=1.0, help="Drucker-Prager cohesion [kPa]")
+    g.add_argument("--friction", type=float, default=35.0, help="Drucker-Prager friction angle [deg]")
+    p.add_argument("--alpha", type=float, nargs="+", default=[0.0], help="deposition angle(s) [deg]")
+    p.add_argument("--steps", type=int, default=None, help="nominal number of load steps")
+    p.add_argument("--order", type=int, choices=[1, 2], default=None, help="element order")
+    p.add_argument("--linear-solver", default="superlu", choices=["superlu", "amg-gmres", "ilu-gmres"])
+    p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _kw(args, **extra):
+    kw = {"linear_solver": args.linear_solver, "progress": not args.no_progress}
+    if args.steps is not None:
+        kw["steps"] = args.steps
+    if args.order is not None:
+        kw["order"] = args.order
+    kw.update(extra)
+    return kw
+
+
+def _sweep(args, func, plane_strain, label, values, key, metric, fixed):
+    out = Path(args.out)
+    rows = []
+    sols = []
+    for v in values:
+        alpha = v if key == "alpha_deg" else args.alpha[0]
+        kw = dict(fixed)
+        kw[key] = v
+        if key != "alpha_deg":
+            kw["alpha_deg"] = alpha
+        run_dir = out / f"{label}_{v:g}" if len(values) > 1 else out
+        sol = func(material=_material(args, alpha, plane_strain), out=run_dir, **kw)
+        sols.append((v, sol))
+        rows.append((v, metric(sol), sol.completed))
+        print(f"{label} = {v:g}: {metric.__doc__} = {metric(sol):.4g}; {sol.stop_reason}; results in {run_dir}")
+    if len(values) > 1:
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / "summary.csv", "w") as f:
+            f.write(f"{label},{metric.__doc__},completed\n")
+            for v, m, c in rows:
+                f.write(f"{v:g},{m:.8g},{int(c)}\n")
+    return sols
+
+
+def _overlay(sols, x, y, path, label, xlabel, ylabel):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 3.6))
+    for v, s in sols:
+        ax.plot(s.history[x], s.history[y], label=f"{label} = {v:g}")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _triaxial(args):
+    from femgran.cases.triaxial import triaxial
+
+    def metric(s):
+        """peak_q_kPa"""
+        return s.peak_q_kPa
+
+    fixed = _kw(args, p0_kPa=args.p0, platens=args.platens, axial_strain=args.axial_strain, resolution=args.resolution)
+    if args.mesh:
+        fixed["mesh"] = args.mesh
+    sols = _sweep(args, triaxial, False, "alpha", args.alpha, "alpha_deg", metric, fixed)
+    if len(sols) > 1:
+        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a.png", "alpha", "axial strain", "q [kPa]")
+        _overlay(sols, "eps_a", "cv_q", Path(args.out) / "uniformity.png", "alpha", "axial strain", "CV of sqrt(3 J2)")
+    return 0
+
+
+def _footing(args):
+    from femgran.cases.footing import footing
+
+    def metric(s):
+        """bearing_capacity_kPa"""
+        return s.bearing_capacity_kPa
+
+    fixed = _kw(args, width_m=args.width, unit_weight=args.unit_weight, surcharge_kPa=args.surcharge,
+                rough=not args.smooth, resolution=args.resolution)
+    if args.settlement is not None:
+        fixed["settlement_m"] = args.settlement
+    if args.mesh:
+        fixed["mesh"] = args.mesh
+    sols = _sweep(args, footing, True, "alpha", args.alpha, "alpha_deg", metric, fixed)
+    if len(sols) > 1:
+        _overlay(sols, "settlement_m", "pressure_kPa", Path(args.out) / "load_settlement.png", "alpha",
+                 "settlement [m]", "mean pressure [kPa]")
+    return 0
+
+
+def _biaxial(args):
+    from femgran.cases.biaxial import biaxial
+
+    def metric(s):
+        """band_angle_deg"""
+        return s.band_angle_deg
+
+    fixed = _kw(args, p0_kPa=args.p0, axial_strain=args.axial_strain, imperfection=args.imperfection,
+                alpha_deg=args.alpha[0])
+    sols = _sweep(args, biaxial, True, "resolution", [int(r) for r in args.resolution], "resolution", metric, fixed)
+    if len(sols) > 1:
+        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a_meshes.png", "resolution", "axial strain", "q [kPa]")
+    return 0
+
+
+def _run(args):
+    from femgran.cases.casefile import run_case
+
+    over = {} if args.no_progress else {"progress": True}
+    sol = run_case(args.case_file, **over)
+    print(f"{sol.stop_reason}; {len(sol.history) - 1} steps; results in {sol.out_dir}")
+    return 0 if sol.completed else 1
 
 
 def register(subparsers) -> None:
-    """Add the boundary-value subcommands (filled in with the FE solver)."""
+    """Add ``triaxial``, ``footing``, ``biaxial`` and ``run``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = subparsers.add_parser("triaxial", help="3D triaxial specimen between rigid platens", formatter_class=fmt,
+                              description="Drained triaxial compression of the 50x50x100 mm specimen (femgran.cases.triaxial).")
+    _common(p, "out/triaxial")
+    p.add_argument("--p0", type=float, default=100.0, help="cell pressure [kPa]")
+    p.add_argument("--platens", choices=["rough", "smooth"], default="rough")
+    p.add_argument("--axial-strain", type=float, default=0.05)
+    p.add_argument("--resolution", type=int, default=4, help="elements across the width")
+    p.add_argument("--mesh", help="mesh file (meshio) filling [0,0.05]^2 x [0,0.1] m")
+    p.set_defaults(func=_triaxial)
+
+    p = subparsers.add_parser("footing", help="plane-strain rigid strip footing", formatter_class=fmt,
+                              description="Load-settlement curve and bearing capacity (femgran.cases.footing).")
+    _common(p, "out/footing")
+    p.add_argument("--width", type=float, default=1.0, help="footing width B [m]")
+    p.add_argument("--unit-weight", type=float, default=18.0, help="unit weight [kN/m3]")
+    p.add_argument("--surcharge", type=float, default=0.0, help="surcharge [kPa]")
+    p.add_argument("--smooth", action="store_true", help="smooth footing (default rough)")
+    p.add_argument("--settlement", type=float, default=None, help="final settlement [m] (default 0.1 B)")
+    p.add_argument("--resolution", type=int, default=3, help="elements across the footing half-width")
+    p.add_argument("--mesh", help="2D mesh file (surface y = 0, footing centred at x = 0)")
+    p.set_defaults(func=_footing)
+
+    p = subparsers.add_parser("biaxial", help="plane-strain biaxial test, shear band", formatter_class=fmt,
+                              description="Biaxial compression with an imperfection (femgran.cases.biaxial).")
+    _common(p, "out/biaxial")
+    p.add_argument("--p0", type=float, default=100.0, help="confining pressure [kPa]")
+    p.add_argument("--axial-strain", type=float, default=0.1)
+    p.add_argument("--imperfection", type=float, default=0.02)
+    p.add_argument("--resolution", type=int, nargs="+", default=[8], help="elements across the width (one run each)")
+    p.set_defaults(func=_biaxial)
+
+    p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
+                              description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)
+    p.add_argument("case_file", help="case file (TOML)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=_run)

@@ -1,0 +1,168 @@
+"""Plane-strain biaxial compression with a small imperfection: localisation in a shear band.
+
+Geometry and axes: x in [0, W], y in [0, H] (H = 2 W), y vertical (loading axis), plane strain in z.
+The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Smooth rigid platens: bottom u_y = 0
+(and u_x = 0 at the corner (0, 0)), top u_y = -eps_a H t, free to slide; the confining pressure p0 acts on
+the two vertical faces and is the in-situ stress (-p0 I).
+
+Imperfection: the left face is pushed inwards by ``imperfection * W`` in a smooth bump at mid-height
+(a geometric imperfection: every point carries the same material, so any material object works).
+
+Band inclination: the shear band is located from the increment of the deviatoric strain between the
+peak and the last converged step; its axis is the principal direction of the strain-weighted point cloud
+above half the maximum. ``band_angle_deg`` is the angle between that axis and the minor principal
+(lateral, x) stress direction, to compare with Coulomb 45 + phi/2, Roscoe 45 + psi/2 and Arthur
+45 + (phi + psi)/4 (``reference_angles_deg``), phi and psi the peak mobilised friction and dilatancy
+angles from the global response: sin phi = (s1 - s3) / (s1 + s3), sin psi = -(d eps_v) / (d eps_1 - d eps_3)
+(compression +).
+
+Regularisation: none yet. The post-peak branch of a softening/localising solution depends on the mesh;
+the model's band thickness t is NOT yet used to scale the softening with the element size (see the
+issue note). ``localised`` says whether the strain increment is concentrated (max / median > 3).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from femgran.cases.common import check_positive, make_material, material_record, nodes_near, run_folder, solver_options
+from femgran.solver import Dirichlet, NewtonSolver
+
+__all__ = ["biaxial", "band_angle"]
+
+
+def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) -> tuple[float, bool]:
+    """Inclination of a band from the x axis [deg, 0..90] and whether the weights are localised.
+
+    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment times the point volume).
+    """
+    w = np.asarray(weights, float)
+    if not np.any(w > 0):
+        return float("nan"), False
+    sel = w >= threshold * w.max()
+    x, ww = points[sel], w[sel]
+    xc = np.average(x, axis=0, weights=ww)
+    C = np.einsum("ni,nj,n->ij", x - xc, x - xc, ww) / ww.sum()
+    vals, vecs = np.linalg.eigh(C)
+    v = vecs[:, -1]
+    angle = np.degrees(np.arctan2(abs(v[1]), abs(v[0])))
+    localised = bool(np.max(w) > 3 * np.median(w[w > 0])) if np.any(w > 0) else False
+    return float(angle), localised
+
+
+def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
+            axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
+            imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
+            linear_solver: str = "superlu", write_every: int = 1, plots: bool = True):
+    """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
+
+    Parameters
+    ----------
+    material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
+    p0_kPa : confining pressure [kPa]; alpha_deg : deposition angle from the vertical y [deg].
+    width_m : W [m]; axial_strain : final axial strain (compression +); steps : nominal steps.
+    resolution : elements across the width (2 x as many over the height); order : 1 or 2.
+    imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
+
+    Returns
+    -------
+    femgran.solver.Solution with ``band_angle_deg``, ``peak_friction_deg``, ``peak_dilatancy_deg``,
+    ``reference_angles_deg`` (Coulomb, Roscoe, Arthur), ``localised``; history columns ``eps_a``,
+    ``eps_v``, ``q_kPa`` (s1 - s3, compression +).
+    """
+    from femgran.assembly import Discretisation
+    from femgran.mesh import name_box_boundaries, rectangle
+
+    p0 = check_positive("p0_kPa", p0_kPa)
+    W = check_positive("width_m", width_m)
+    ea = check_positive("axial_strain", axial_strain)
+    imp = check_positive("imperfection", imperfection, allow_zero=True)
+    if imp >= 0.2:
+        raise ValueError(f"imperfection = {imperfection!r}: allowed 0 <= imperfection < 0.2")
+    n = int(resolution)
+    if n < 2:
+        raise ValueError(f"resolution = {resolution!r}: must be >= 2")
+    H = 2 * W
+    m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, 2 * n + 1))
+    p = m.p.copy()
+    p[0] += imp * W * (1 - p[0] / W) * np.exp(-(((p[1] - 0.5 * H) / (0.1 * H)) ** 2))
+    m = name_box_boundaries(type(m)(p, m.t))
+    # the bump moved the left face: name it by the original x = 0 nodes
+    left_nodes = np.flatnonzero(np.abs(m.p[0] - imp * W * np.exp(-(((m.p[1] - 0.5 * H) / (0.1 * H)) ** 2))) < 1e-12 * W)
+    left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
+    mat = make_material(material, alpha_deg, plane_strain=True)
+    d = Discretisation(m, order, volumetric)
+    b = m.boundaries
+    bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
+    right = d.facet_scalar_dofs(b["right"])
+    left = d.facet_scalar_dofs(left_facets)
+    bcs = [Dirichlet(d.vector_dofs(bot, [1]), 0.0, name="bottom"),
+           Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
+           Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
+    f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
+    solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
+                          options=solver_options(linear_solver))
+    xq = d.quadrature_points()
+    w = d.dx.ravel()
+    snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
+    rx, lx = d.vector_dofs(right, [0]), d.vector_dofs(left, [0])
+
+    def observe(s):
+        r = d.internal_force(s.points.stress) - s.external(s.t)
+        q = -float(np.sum(r[bcs[1].dofs])) / W - p0
+        e_a = -float(np.mean(s.u[bcs[1].dofs])) / H
+        e_l = -(float(np.mean(s.u[rx])) - float(np.mean(s.u[lx]))) / W
+        snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
+        return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
+
+    out_dir = run_folder(out)
+    writer = None
+    params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
+              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
+              "volumetric": volumetric, "linear_solver": linear_solver, "material": material_record(mat),
+              "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": "none"}
+    if out_dir is not None:
+        from femgran.output import SeriesWriter, write_parameters
+
+        write_parameters(out_dir / "parameters.json", params)
+        writer = SeriesWriter(out_dir, d, name="biaxial", every=write_every)
+    sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    h = sol.history
+    q, e_a, e_l = h["q_kPa"], h["eps_a"], h["eps_lateral"]
+    # the peak: the first step reaching 99 % of the largest deviator (a plateau counts as a peak)
+    k = int(np.flatnonzero(q >= 0.99 * np.nanmax(q))[0])
+    s1, s3 = q[k] + p0, p0
+    phi = float(np.degrees(np.arcsin(np.clip((s1 - s3) / (s1 + s3), -1, 1))))
+    k0, k1 = max(k - 1, 0), min(k + 1, len(q) - 1)
+    de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
+    psi = float(np.degrees(np.arcsin(np.clip(-(de1 + de3) / (de1 - de3), -1, 1)))) if de1 != de3 else float("nan")
+    dstrain = np.asarray(sol.state["strain"]) - snaps[k].astype(float)
+    dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
+    angle, localised = band_angle(xq, gamma)
+    sol.extra.update(params=params, band_angle_deg=angle, localised=localised, peak_friction_deg=phi,
+                     peak_dilatancy_deg=psi, peak_q_kPa=float(q[k]),
+                     reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
+    if out_dir is not None:
+        from femgran.output import write_parameters
+
+        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
+                                                    ("band_angle_deg", "localised", "peak_friction_deg",
+                                                     "peak_dilatancy_deg", "peak_q_kPa", "reference_angles_deg")})
+        if plots:
+            _plots(sol, out_dir)
+    return sol
+
+
+def _plots(sol, out_dir: Path) -> None:
+    from femgran.output import plot_field, plot_history, read_pvd
+
+    plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png", xlabel="axial strain", ylabel="q [kPa]",
+                 title="plane-strain biaxial")
+    plot_history(sol.history, "eps_a", "eps_v", out_dir / "eps_v.png", xlabel="axial strain",
+                 ylabel="volumetric strain (compression +)")
+    entries = read_pvd(out_dir / "biaxial.pvd")
+    if entries:
+        plot_field(entries[-1][1], "q_kPa", out_dir / "field_q.png")

@@ -1,0 +1,197 @@
+"""The boundary-value cases: element bridge, triaxial specimen, Prandtl footing, shear band, case files, bad input."""
+
+import numpy as np
+import pytest
+
+import material
+from femgran.cases import element, footing, load_case, run_case, triaxial
+from femgran.cases.biaxial import band_angle, biaxial
+from femgran.cases.footing import prandtl_pressure
+from material import CPAModel, driver, load_preset
+from material.anisotropy import axes_from_alpha
+
+
+@pytest.mark.parametrize("alpha", [0.0, 30.0])
+def test_element_bridge_reproduces_the_material_driver(alpha):
+    model = CPAModel(load_preset("ottawa_c109"), axes=axes_from_alpha(alpha))
+    sol = element(model, p0_kPa=100.0, alpha_deg=alpha, axial_strain=0.02, steps=20)
+    ref = driver.triaxial(model, p0_kPa=100.0, alpha_deg=alpha, axial_strain=0.02, steps=20)
+    h = sol.history
+    assert sol.completed and len(h) == len(ref["q_kPa"])
+    np.testing.assert_allclose(h["eps_a"], ref["eps_a"], atol=1e-12)
+    assert np.abs(h["q_kPa"] - ref["q_kPa"]).max() <= 1e-6 * np.abs(ref["q_kPa"]).max()
+    assert np.abs(h["eps_v"] - ref["eps_v"]).max() <= 1e-6 * np.abs(ref["eps_v"]).max()
+    if alpha:
+        assert abs(h["gamma_xz"][-1]) > 1e-6  # inclined bedding: the sample shears, as in the driver
+
+
+def test_triaxial_smooth_platens_alpha0_reproduce_the_element_test():
+    kw = dict(p0_kPa=100.0, axial_strain=0.01, steps=5)
+    spec = triaxial(None, alpha_deg=0.0, platens="smooth", resolution=2, plots=False, **kw)
+    el = element(None, alpha_deg=0.0, **kw)
+    assert spec.completed
+    assert np.abs(spec.history["q_kPa"] - el.history["q_kPa"]).max() < 1e-6 * el.history["q_kPa"].max()
+    assert spec.history["cv_q"].max() < 1e-8  # uniform
+
+
+def test_triaxial_rough_platens_make_an_inclined_specimen_non_uniform():
+    kw = dict(p0_kPa=100.0, alpha_deg=45.0, axial_strain=0.01, steps=4, resolution=2, plots=False)
+    smooth = triaxial(None, platens="smooth", **kw)
+    rough = triaxial(None, platens="rough", **kw)
+    assert smooth.completed and rough.completed
+    assert smooth.history["cv_q"][-1] < 1e-8 and abs(smooth.history["top_shift_mm"][-1]) > 1e-4  # distorts freely
+    assert rough.history["cv_q"][-1] > 0.05 and abs(rough.history["top_shift_mm"][-1]) < 1e-12  # constrained
+    assert rough.peak_q_kPa > smooth.peak_q_kPa  # the platens stiffen the response
+
+
+def test_prandtl_bearing_capacity_on_a_coarse_mesh():
+    """Weightless von Mises soil, rough rigid footing, Q2 B-bar, 1350 DOFs: (2 + pi) c_u within 8 %."""
+    c_u = 100.0
+    sol = footing(material.VonMises(3e4, 0.3, c_u * np.sqrt(3)), 1.0, 0.0, 0.0, True, settlement_m=0.2, steps=30,
+                  resolution=2, plots=False)
+    ratio = sol.bearing_capacity_kPa / prandtl_pressure(c_u)
+    print("Prandtl coarse: q_u / (2 + pi) c_u =", ratio)
+    assert sol.completed
+    assert 1.0 < ratio < 1.08
+    p = sol.history["pressure_kPa"]
+    assert abs(p[-1] - p[-4]) < 1e-3 * p[-1]  # the curve has reached its plateau
+
+
+@pytest.mark.slow
+def test_prandtl_mesh_convergence_within_three_percent():
+    c_u = 100.0
+    ratios = []
+    for res in (2, 4, 8):
+        sol = footing(material.VonMises(3e4, 0.3, c_u * np.sqrt(3)), 1.0, 0.0, 0.0, True, settlement_m=0.2,
+                      steps=40, resolution=res, plots=False)
+        ratios.append(sol.bearing_capacity_kPa / prandtl_pressure(c_u))
+    print("Prandtl mesh convergence (resolution 2, 4, 8):", ratios)
+    assert ratios[0] > ratios[1] > ratios[2] > 1.0
+    assert ratios[-1] < 1.03
+
+
+def test_footing_self_weight_and_surcharge_start_in_equilibrium():
+    """Elastic layer: the geostatic state with surcharge is in equilibrium, the pressure starts at q_s."""
+    sol = footing(material.LinearElastic(2e4, 0.3), 1.0, 18.0, 10.0, True, settlement_m=0.01, steps=2, resolution=1,
+                  K0=0.3 / 0.7, plots=False)
+    assert sol.completed
+    assert sol.history["pressure_kPa"][0] == pytest.approx(10.0, rel=1e-6)
+    assert sol.history["pressure_kPa"][-1] > 10.0
+
+
+def test_band_angle_of_a_synthetic_band():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(0, 1, size=(4000, 2))
+    t = np.radians(60.0)
+    dist = np.abs(-np.sin(t) * (x[:, 0] - 0.5) + np.cos(t) * (x[:, 1] - 0.5))
+    w = np.exp(-((dist / 0.03) ** 2))
+    angle, localised = band_angle(x, w)
+    assert angle == pytest.approx(60.0, abs=1.5) and localised
+
+
+def test_biaxial_runs_and_reports_the_angles(tmp_path):
+    sol = biaxial(material.DruckerPrager(3e4, 0.3, 1.0, 35.0, 5.0), 100.0, axial_strain=0.02, steps=8, resolution=4,
+                  out=tmp_path / "bx", plots=False)
+    assert sol.completed
+    assert 30.0 < sol.peak_friction_deg < 40.0  # plane-strain-matched DP cone with phi = 35
+    assert set(sol.reference_angles_deg) == {"coulomb", "roscoe", "arthur"}
+    assert (tmp_path / "bx" / "summary.json").is_file() and (tmp_path / "bx" / "biaxial.pvd").is_file()
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def test_case_file_runs_and_rejects_unknown_keys(tmp_path):
+    from femgran.cli import main
+
+    case = _write(tmp_path / "f.toml", f"""
+case = "footing"
+out = "{tmp_path / 'run'}"
+[material]
+law = "von_mises"
+E_kPa = 30000.0
+nu = 0.3
+yield_stress_kPa = 173.2
+[parameters]
+unit_weight = 0.0
+resolution = 1
+steps = 3
+settlement_m = 0.005
+plots = false
+""")
+    assert main(["run", str(case), "--no-progress"]) == 0
+    assert (tmp_path / "run" / "footing.pvd").is_file() and (tmp_path / "run" / "history.csv").is_file()
+    assert (tmp_path / "run" / "parameters.json").is_file() and (tmp_path / "run" / "case.toml").is_file()
+    bad = _write(tmp_path / "bad.toml", 'case = "footing"\n[parameters]\nwidth = 1.0\n')
+    with pytest.raises(ValueError, match="unknown key.*'width'"):
+        load_case(bad)
+    assert main(["run", str(bad)]) == 2
+    with pytest.raises(ValueError, match="unknown key.*'colour'"):
+        load_case(_write(tmp_path / "b2.toml", 'case = "footing"\ncolour = 1\n'))
+    with pytest.raises(ValueError, match="case = 'dam'"):
+        load_case(_write(tmp_path / "b3.toml", 'case = "dam"\n'))
+    with pytest.raises(ValueError, match="law = 'tresca'"):
+        load_case(_write(tmp_path / "b4.toml", 'case = "footing"\n[material]\nlaw = "tresca"\n'))
+    with pytest.raises(ValueError, match="unknown key.*'phi'"):
+        load_case(_write(tmp_path / "b5.toml", 'case = "footing"\n[material]\nlaw = "von_mises"\nphi = 3\n'))
+
+
+def test_bad_mesh_files(tmp_path):
+    import meshio
+
+    with pytest.raises(FileNotFoundError, match="not found"):
+        triaxial(None, mesh=tmp_path / "missing.vtu")
+    junk = _write(tmp_path / "junk.vtu", "this is not a mesh")
+    with pytest.raises(ValueError, match="unreadable"):
+        triaxial(None, mesh=junk)
+    # a quad mesh with one element turned inside out
+    pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
+    cells = np.array([[0, 1, 4, 3], [1, 4, 5, 2]])  # the second is clockwise
+    meshio.Mesh(pts, [("quad", cells)]).write(tmp_path / "inv.vtu")
+    with pytest.raises(ValueError, match="inverted"):
+        footing(None, mesh=tmp_path / "inv.vtu")
+    # a mesh that does not contain the footing
+    pts = np.array([[2, -1], [3, -1], [3, 0], [2, 0]], float)
+    meshio.Mesh(pts, [("quad", np.array([[0, 1, 2, 3]]))]).write(tmp_path / "far.vtu")
+    with pytest.raises(ValueError, match="must contain"):
+        footing(None, mesh=tmp_path / "far.vtu")
+    # a 3D specimen mesh of the wrong size
+    from femgran.mesh import box
+    from skfem.io.meshio import to_meshio
+
+    to_meshio(box(1.0, 1.0, 1.0, 1, 1, 1), encode_cell_data=False).write(tmp_path / "cube.vtu")
+    with pytest.raises(ValueError, match="must be 3D and fill"):
+        triaxial(None, mesh=tmp_path / "cube.vtu")
+
+
+def test_bad_case_arguments():
+    with pytest.raises(ValueError, match="frictional.*not implemented"):
+        triaxial(None, platens="frictional")
+    with pytest.raises(ValueError, match="platens = 'glued'"):
+        triaxial(None, platens="glued")
+    with pytest.raises(ValueError, match="p0_kPa"):
+        triaxial(None, p0_kPa=-1.0)
+    with pytest.raises(ValueError, match="width_m"):
+        footing(None, width_m=0.0)
+    with pytest.raises(ValueError, match="order"):
+        footing(None, order=3)
+
+
+class _PlaneStressOnly:
+    """A law with 2x2 tensors: inconsistent with femgran's 3x3 material interface."""
+
+    def initial_state(self, n, stress=None):
+        return {"strain": np.zeros((n, 2, 2)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
+
+    def update(self, d_strain, stress, state):
+        n = len(d_strain)
+        return np.zeros((n, 2, 2)), state, np.zeros((n, 2, 2, 2, 2))
+
+
+def test_inconsistent_material_is_rejected_before_computing():
+    with pytest.raises(ValueError, match=r"tangent \(N,3,3,3,3\)"):
+        footing(_PlaneStressOnly(), resolution=1)
+    with pytest.raises(ValueError, match="lacks the method"):
+        triaxial(object())
