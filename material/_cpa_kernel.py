@@ -10,7 +10,9 @@ so that ``a : b = v_a . v_b`` and a symmetric 4th-order map is a 6x6 matrix. Str
 positive; on a plane with unit normal ``n`` the normal traction is compression positive,
 ``sigma_N = -n.sigma.n``.
 
-Unknown: the stress ``sigma`` at the end of the (sub)step. Residual (strain units)::
+The implicit (backward Euler) step solves for the end-of-step stress. With the hardening law (2.16)
+inverted, the slip of a loading plane is an explicit function of the stress, and the step is the
+strain residual (strain units)::
 
     R(sigma) = S : (sigma - sigma_n) + d_eps_p(sigma) - d_eps = 0
     d_eps_p  = (1/t) sum_a w_a sym(dg_a (x) n_a)                           (2.9)
@@ -19,10 +21,15 @@ Unknown: the stress ``sigma`` at the end of the (sub)step. Residual (strain unit
     etah_a   = (tau_a - c_a) / sigma_N,a                                    (mobilised ratio)
 
 ``S`` the elastic compliance (isotropic Hooke, 2.11-2.15 normalised to it), ``w_a`` the plane weights
-(sum 1, +-n folded), ``t`` the band thickness. Newton on R with the analytic Jacobian J = dR/dsigma and
-a backtracking line search that keeps every plane strictly inside its barrier ``etah_a < zeta eta_f,a``
-(kappa -> inf there); the consistent tangent is dsigma/d(d_eps) = J^-1 (I - dR/d eps |_sigma), the
-second term from the strain dependence of eta_f through the induced tensor Lambda = beta dev(eps)
+(sum 1, +-n folded), ``t`` the band thickness. Solving R(sigma) = 0 directly meets the barrier
+etah_a -> zeta eta_f,a where kappa -> inf, and Newton stalls near failure. So Newton runs on the
+stress AND the slips of the loading planes, with the hardening law as an equation per plane,
+``g_a = etah_a(sigma) - zeta eta_f kappa_a / (A + kappa_a) = 0``; each d kappa_a is eliminated from the
+linearised system plane by plane, leaving a 6x6 system (:func:`_assemble`). An active-set update
+(planes start or stop loading) runs at every iteration, and a backtracking line search on
+``|R|^2/|d_eps|^2 + sum g^2`` keeps the iterates admissible. At the solution the condensed matrix is
+the Jacobian dR/dsigma, so the consistent tangent is dsigma/d(d_eps) = J^-1 (I - dR/d eps |_sigma),
+the second term from the strain dependence of eta_f through the induced tensor Lambda = beta dev(eps)
 (3.14-3.15). When a step does not converge it is split into 2, 4, ... equal sub-steps; the tangent
 is then carried through the sub-steps by the chain rule (sensitivities of sigma and of every kappa_a
 with respect to the total increment), so it stays consistent with the algorithm actually used.
@@ -47,7 +54,7 @@ _I_MAX_LEVEL = 1
 _I_TANGENT = 2
 # float options
 _F_TOL = 0
-_F_BARRIER = 1
+_F_TOL_G = 1
 _F_CUTOFF_STIFFNESS = 2
 
 
@@ -101,20 +108,33 @@ def _plane_strengths(eps6, normals6, om6, coeffs, eta0, beta, eta_f, deta_f):
 
 
 @njit(cache=True)
-def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
-              comp, barrier, want_jac, r, J, active, dkap, work, tmp):
-    """Residual R (and Jacobian J) at sig; returns (feasible, |R|).
+def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
+              comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm):
+    """Residuals and the condensed Newton system at the iterate (sig, kap).
 
-    ``work`` (M, 8) receives per plane: sigma_N, tau, etah, q = tau/(sigma_N+sigma0), dil, kappa',
-    and the slip direction is recomputed where needed. ``active[a]`` is set for loading planes.
+    Unknowns: the stress and the slip kappa_a of every loading plane. Residuals: the strain residual
+    ``r = S (sigma - sigma_n) + (1/t) sum_a w_a (kappa_a - kappa_n,a) m_a - d_eps`` with
+    ``m_a = sym((s_a - dil_a n_a) (x) n_a)`` (2.7, 2.9), and on each loading plane the hardening law
+    (2.16) ``g_a = etah_a(sigma) - zeta eta_f kappa_a / (A + kappa_a) = 0``. Linearising g_a gives
+    ``d kappa_a = (g_a + b_a . d sigma) / eta'_a`` (b_a = d etah_a / d sigma), which condenses the system
+    to ``J d sigma = rhs`` with ``J = S + sum_a (w_a/t) [dkappa_a dm_a/dsigma + m_a (x) b_a / eta'_a]``
+    and ``rhs = -r - sum_a (w_a/t) m_a g_a / eta'_a``. At a solution J is the Jacobian of the
+    stress-only residual, so its inverse is the consistent tangent. Unlike the stress-only form, nothing
+    here is singular as etah approaches zeta eta_f: kappa is an unknown, not kappa(etah).
+
+    ``update_active`` 1: an elastic plane whose etah exceeds eta(kappa_n) starts loading (kappa from
+    kappa_n), a loading plane whose kappa fell below kappa_n unloads; 2: only report (``changed``)
+    whether such a switch is due; 0: the active set is frozen. Returns (admissible, merit,
+    changed, |r|, max |g|); merit = |r|^2 / |d_eps|^2 + sum g^2. ``work[a]`` receives sigma_N, tau, etah,
+    q, dil, 1/eta', g; ``bvec[a]`` receives b_a.
     """
     M = normals.shape[0]
-    # elastic part
     for i in range(6):
         acc = -de[i]
         for j in range(6):
             acc += comp[i, j] * (sig[j] - sig_n[j])
         r[i] = acc
+        rhs[i] = 0.0
     if want_jac:
         for i in range(6):
             for j in range(6):
@@ -127,6 +147,9 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
     mn6 = tmp[1]
     v1 = tmp[2]
     v2 = tmp[3]
+    merit_g = 0.0
+    gmax = 0.0
+    changed = False
     for a in range(M):
         n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
         t0, t1, t2 = _traction(sig, n0, n1, n2)
@@ -137,58 +160,77 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
         c = cohesion[a]
         ef = eta_f[a]
         zef = zeta * ef
-        active[a] = False
-        dkap[a] = 0.0
-        if sigma_N <= 0.0:
-            # tension side: no normal tension beyond the apex sigma0 = c / eta_f, and no shear above
-            # the cohesion on a plane that is not compressed (MODEL.md, tension cut-off)
-            if tau > c + tau_tiny or sigma_N < -c / ef - tau_tiny:
-                return False, np.inf
-            continue
-        etah = (tau - c) / sigma_N
-        if etah >= zef * (1.0 - barrier):
-            return False, np.inf
         kn = kap_n[a]
-        eta_n = zef * kn / (A + kn)  # hardening level reached so far (2.16)
-        if tau <= tau_tiny or etah < eta_n:
+        if sigma_N <= 0.0 or tau <= tau_tiny:
+            if active[a]:
+                if update_active != 1:
+                    return False, np.inf, changed, np.inf, np.inf
+                active[a] = False  # a loading plane that lost its compression or its shear unloads
+                kap[a] = kn
+                changed = True
+            if sigma_N <= 0.0 and (tau > c + tau_tiny or sigma_N < -c / ef - tau_tiny):
+                # tension side: no normal tension beyond the apex sigma0 = c / eta_f, and no shear above
+                # the cohesion on a plane that is not compressed (MODEL.md, tension cut-off)
+                return False, np.inf, changed, np.inf, np.inf
             continue
-        kap = A * etah / (zef - etah)
-        dk = kap - kn
-        if dk < 0.0:
-            dk = 0.0
-        active[a] = True
-        dkap[a] = dk
+        etah = (tau - c) / sigma_N  # mobilised ratio
+        if update_active != 0:
+            if active[a]:
+                if kap[a] < kn:
+                    changed = True
+                    if update_active == 1:
+                        active[a] = False
+                        kap[a] = kn
+            elif etah > zef * kn / (A + kn):  # loading beyond the level reached so far (2.16)
+                changed = True
+                if update_active == 1:
+                    active[a] = True
+                    kap[a] = kn
+        if not active[a]:
+            continue
+        k = kap[a]
+        if k <= -0.5 * A:
+            # an iterate may take kappa below kappa_n (the plane is about to unload; the next active-set
+            # update switches it off) but must keep A + kappa > 0 for the hardening curve to make sense
+            return False, np.inf, changed, np.inf, np.inf
+        dk = k - kn
+        apk = A + k
+        g = etah - zef * k / apk  # hardening law (2.16) residual
+        kprime = apk * apk / (zef * A)  # 1 / eta'(kappa)
         s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
         sig0 = c / ef
         q = tau / (sigma_N + sig0)
         dil = eta_c_ratio * ef - q  # d psi / d sigma_N (2.17): > 0 compaction, < 0 dilation
-        kprime = A * zef / ((zef - etah) * (zef - etah))
         work[a, 0] = sigma_N
         work[a, 1] = tau
         work[a, 2] = etah
         work[a, 3] = q
         work[a, 4] = dil
         work[a, 5] = kprime
+        work[a, 6] = g
+        merit_g += g * g
+        gmax = max(gmax, abs(g))
         wt = weights[a] * inv_t
-        # sym(dg (x) n) with dg = dk (s - dil n)                                  (2.7, 2.9)
         _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
         for i in range(6):
-            r[i] += wt * dk * (sn6[i] - dil * nn6[a, i])
+            r[i] += wt * dk * (sn6[i] - dil * nn6[a, i])  # (2.7, 2.9)
         if want_jac:
             m0 = n1 * s2 - n2 * s1
             m1 = n2 * s0 - n0 * s2
             m2 = n0 * s1 - n1 * s0
             _sym_mandel(mn6, m0, m1, m2, n0, n1, n2)
             inv_sn = 1.0 / sigma_N
-            inv_sq = 1.0 / (sigma_N + sig0)
             for j in range(6):
                 v1[j] = sn6[j] + etah * nn6[a, j]  # sigma_N d etah / d sigma
                 v2[j] = sn6[j] + q * nn6[a, j]     # (sigma_N + sigma0) dq / d sigma
+                bvec[a, j] = v1[j] * inv_sn
             cg = wt * kprime * inv_sn
-            ch = wt * dk * inv_sq
+            ch = wt * dk / (sigma_N + sig0)
             cm = wt * dk / tau
             for i in range(6):
-                gi = cg * (sn6[i] - dil * nn6[a, i])
+                mi_ = sn6[i] - dil * nn6[a, i]
+                rhs[i] += wt * mi_ * g * kprime
+                gi = cg * mi_
                 hi = ch * nn6[a, i]
                 mi = cm * mn6[i]
                 for j in range(6):
@@ -196,7 +238,9 @@ def _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zet
     rn = 0.0
     for i in range(6):
         rn += r[i] * r[i]
-    return True, np.sqrt(rn)
+        rhs[i] = -r[i] - rhs[i]
+    merit = rn / (de_norm * de_norm + 1e-300) + merit_g
+    return True, merit, changed, np.sqrt(rn), gmax
 
 
 @njit(cache=True)
@@ -266,110 +310,163 @@ def _is_strictly_compressive(sig, normals):
 
 
 @njit(cache=True)
-def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-                   comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred):
-    """Newton with line search for one (sub)step; sig receives the solution. Returns (ok, iterations).
-
-    ``pred`` (6, 6) is the consistent tangent of the point's previous plastic step (pred[0, 0] == 0 when
-    there is none): the predictor sigma_n + pred : d_eps starts Newton when it beats sigma_n.
-
-    On return with ok, J holds the LU factors of the Jacobian at the solution and active/dkap/work
-    describe the loading planes there.
-    """
+def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
+            comp, tol, tol_g, maxit, de_norm, active, r, J, rhs, work, bvec, tmp, piv, dk_step, sig_try, kap_try):
+    """Newton on (sigma, kappa) from the given iterate, with an active-set update at each iteration and a
+    backtracking line search on the merit function (active set frozen). Returns (ok, iterations);
+    on success J holds the LU factors of the condensed Jacobian at the solution."""
     M = normals.shape[0]
-    de_norm = 0.0
-    for i in range(6):
-        de_norm += de[i] * de[i]
-    de_norm = np.sqrt(de_norm)
-    # a point that was plastic in its last step most likely goes on loading: try the tangent predictor
-    # of that step first; Newton starts there when it is admissible and clearly closer than sigma_n
-    # (whose residual is about |d_eps|); otherwise the elastic trial decides ...
-    if pred[0, 0] != 0.0:
-        for i in range(6):
-            acc = sig_n[i]
-            for j in range(6):
-                acc += pred[i, j] * de[j]
-            sig[i] = acc
-        feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
-                             eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
-        if feas and rn < 0.5 * de_norm:
-            return _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-                           comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn,
-                           de_norm)
-    # ... elastic trial stress
-    for i in range(6):
-        acc = sig_n[i]
-        for j in range(6):
-            acc += stiff[i, j] * de[j]
-        trial[i] = acc
-    # residual only: most plastic points leave the trial stress at once, so its Jacobian would be wasted
-    feas, rn = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
-                         eta_c_ratio, comp, barrier, False, r, J, active, dkap, work, tmp)
-    if feas:
-        any_active = False
-        for a in range(M):
-            if active[a]:
-                any_active = True
-                break
-        if not any_active:
-            for i in range(6):
-                sig[i] = trial[i]
-                for j in range(6):
-                    J[i, j] = comp[i, j]
-            ok = _lu_factor(J, piv)
-            return ok, 0
-    # plastic: Newton from the converged stress of the previous step (admissible by construction), or
-    # from the isotropic part of the trial stress when that one sits on the apex (all-zero or tensile planes)
-    if _is_strictly_compressive(sig_n, normals):
-        for i in range(6):
-            sig[i] = sig_n[i]
-    else:
-        p = (trial[0] + trial[1] + trial[2]) / 3.0
-        if p >= 0.0:
-            return False, 0
-        for i in range(6):
-            sig[i] = p if i < 3 else 0.0
-    feas, rn = _evaluate(sig, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
-                         eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
-    if not feas:
-        return False, 0
-    return _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-                   comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn, de_norm)
-
-
-@njit(cache=True)
-def _newton(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
-            comp, tol, barrier, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, rn, de_norm):
-    """Newton iterations from ``sig`` (r, J already evaluated there, |r| = rn), backtracking line search."""
-    if rn <= tol * (de_norm + 1e-300) or rn <= 1e-15:
-        return _lu_factor(J, piv), 0
-    for it in range(1, maxit + 1):
-        if not _lu_factor(J, piv):
+    ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
+                                             zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r, J, rhs, work,
+                                             bvec, tmp, de_norm)
+    dsig = tmp[4]
+    for it in range(maxit + 1):
+        if not ok:
+            return False, it
+        if not changed and rn <= tol * (de_norm + 1e-300) and gmax <= tol_g:
+            return _lu_factor(J, piv), it
+        if it == maxit or not _lu_factor(J, piv):
             return False, it
         for i in range(6):
-            delta[i] = -r[i]
-        _lu_solve(J, piv, delta)
-        # backtracking line search on |R|, keeping every plane inside its barrier
+            dsig[i] = rhs[i]
+        _lu_solve(J, piv, dsig)
+        for a in range(M):
+            if active[a]:
+                acc = work[a, 6]
+                for j in range(6):
+                    acc += bvec[a, j] * dsig[j]
+                dk_step[a] = acc * work[a, 5]
+            else:
+                dk_step[a] = 0.0
+        # line search with the active set frozen; the evaluation that is accepted also provides the
+        # residuals and the Jacobian of the next iteration unless a plane is due to switch
         alpha = 1.0
         accepted = False
         for _ls in range(40):
             for i in range(6):
-                trial[i] = sig[i] + alpha * delta[i]
-            feas, rn_new = _evaluate(trial, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A,
-                                     inv_t, eta_c_ratio, comp, barrier, True, r, J, active, dkap, work, tmp)
-            if feas and rn_new <= (1.0 - 1e-4 * alpha) * rn:
+                sig_try[i] = sig[i] + alpha * dsig[i]
+            for a in range(M):
+                kap_try[a] = kap[a] + alpha * dk_step[a]
+            ok2, merit2, due, rn2, gmax2 = _assemble(sig_try, kap_try, sig_n, de, kap_n, normals, nn6, weights,
+                                                     cohesion, eta_f, zeta, A, inv_t, eta_c_ratio, comp, 2, True,
+                                                     active, r, J, rhs, work, bvec, tmp, de_norm)
+            if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
             return False, it
         for i in range(6):
-            sig[i] = trial[i]
-        rn = rn_new
-        if rn <= tol * (de_norm + 1e-300) or rn <= 1e-15:
-            ok = _lu_factor(J, piv)
-            return ok, it
+            sig[i] = sig_try[i]
+        for a in range(M):
+            kap[a] = kap_try[a]
+        if due:
+            ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion,
+                                                     eta_f, zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r,
+                                                     J, rhs, work, bvec, tmp, de_norm)
+        else:
+            ok, merit, changed, rn, gmax = True, merit2, False, rn2, gmax2
     return False, maxit
+
+
+@njit(cache=True)
+def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+                   comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred,
+                   kap, bvec, dk_step, kap_try):
+    """One (sub)step: elastic trial, else Newton on (sigma, kappa). Returns (ok, iterations).
+
+    ``pred`` (6, 6) is the consistent tangent of the point's previous plastic step (pred[0, 0] == 0 when
+    there is none). A point that was plastic in its last step most likely goes on loading, so Newton
+    first starts from the predictor sigma_n + pred : d_eps with every loading plane put on its hardening
+    curve; otherwise (or if that fails) the elastic trial decides, and Newton starts from it with kappa_n
+    (the classical return from the trial state), or from sigma_n when the trial is not admissible.
+    On success sig holds the stress, J the LU factors of the Jacobian, active/dkap/work the planes.
+    """
+    M = normals.shape[0]
+    de_norm = 0.0
+    for i in range(6):
+        de_norm += de[i] * de[i]
+    de_norm = np.sqrt(de_norm)
+    sig_try = tmp[5]
+    its = 0
+    if pred[0, 0] != 0.0:
+        for i in range(6):
+            acc = sig_n[i]
+            for j in range(6):
+                acc += pred[i, j] * de[j]
+            sig[i] = acc
+        admissible = True
+        for a in range(M):
+            kap[a] = kap_n[a]
+            active[a] = False
+            n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+            t0, t1, t2 = _traction(sig, n0, n1, n2)
+            tn = t0 * n0 + t1 * n1 + t2 * n2
+            sN = -tn
+            if sN <= 0.0:
+                admissible = False
+                break
+            ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
+            etah = (np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2) - cohesion[a]) / sN
+            zef = zeta * eta_f[a]
+            if etah > zef * kap_n[a] / (A + kap_n[a]):
+                e = min(etah, zef * (1.0 - 1e-6))
+                kap[a] = max(kap_n[a], A * e / (zef - e))  # on the hardening curve (2.16)
+                active[a] = True
+        if admissible:
+            ok, its = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
+                              eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp,
+                              piv, dk_step, sig_try, kap_try)
+            if ok:
+                _finish_substep(kap, kap_n, active, dkap)
+                return True, its
+    # elastic trial
+    for i in range(6):
+        acc = sig_n[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        trial[i] = acc
+        sig[i] = acc
+    for a in range(M):
+        kap[a] = kap_n[a]
+        active[a] = False
+    ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
+                                             zeta, A, inv_t, eta_c_ratio, comp, 1, False, active, r, J, delta,
+                                             work, bvec, tmp, de_norm)
+    if ok and not changed:
+        for i in range(6):
+            for j in range(6):
+                J[i, j] = comp[i, j]
+        for a in range(M):
+            dkap[a] = 0.0
+        return _lu_factor(J, piv), its
+    if not ok:
+        # the trial stress puts some plane in tension: return from sigma_n (admissible by construction),
+        # or from the isotropic part of the trial stress when sigma_n sits on the apex
+        for a in range(M):
+            kap[a] = kap_n[a]
+            active[a] = False
+        if _is_strictly_compressive(sig_n, normals):
+            for i in range(6):
+                sig[i] = sig_n[i]
+        else:
+            p = (trial[0] + trial[1] + trial[2]) / 3.0
+            if p >= 0.0:
+                return False, its
+            for i in range(6):
+                sig[i] = p if i < 3 else 0.0
+    ok, its2 = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
+                       eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp, piv,
+                       dk_step, sig_try, kap_try)
+    if ok:
+        _finish_substep(kap, kap_n, active, dkap)
+    return ok, its + its2
+
+
+@njit(cache=True)
+def _finish_substep(kap, kap_n, active, dkap):
+    for a in range(kap.shape[0]):
+        dkap[a] = kap[a] - kap_n[a] if active[a] else 0.0
 
 
 @njit(cache=True)
@@ -385,12 +482,16 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     max_level = iopt[_I_MAX_LEVEL]
     want_tangent = iopt[_I_TANGENT] != 0
     tol = fopt[_F_TOL]
-    barrier = fopt[_F_BARRIER]
+    tol_g = fopt[_F_TOL_G]
     eta_f = bufs_f[0, :M]
     deta_f = bufs_f[1, :M]
     dkap = bufs_f[2, :M]
     kap = bufs_f[3, :M]
     work = bufs_f[4:12, :M].T  # (M, 8) view
+    kap_it = bufs_f[12, :M]
+    dk_step = bufs_f[13, :M]
+    kap_try = bufs_f[14, :M]
+    bvec = bufs_f[15:21, :M].T  # (M, 6) view
     active = bufs_b[:M]
     sig = vecs[0]
     sig_prev = vecs[1]
@@ -402,7 +503,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     col = vecs[7]
     sn6 = vecs[8]
     dev_nn = vecs[9]
-    tmp = vecs[10:14]
+    tmp = vecs[10:16]
     J = mats[0]
     B = mats[1]
     Dsig = mats[2]
@@ -448,8 +549,8 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                 eps_k[i] = eps_n[i] + frac * de[i]
             _plane_strengths(eps_k, nn6, om6, coeffs, eta0, beta, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
-                                     eta_c_ratio, comp, stiff, tol, barrier, maxit, sig, J, active, dkap, work,
-                                     r, piv, delta, trial, tmp, pred)
+                                     eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work,
+                                     r, piv, delta, trial, tmp, pred, kap_it, bvec, dk_step, kap_try)
             total_it += its
             if not ok:
                 failed = True
@@ -574,7 +675,7 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
     sig_n, de, eps_n (N, 6); kap_n (N, M); normals (M, 3) global; nn6 (M, 6) Mandel(n n);
     weights, cohesion (M,); om6 (6,) Mandel(Omega) global; coeffs (K,) a1..aK;
     comp, stiff (6, 6) elastic compliance / stiffness (Mandel); iopt = (maxit, max_level, want_tangent);
-    fopt = (tol, barrier, cutoff_stiffness).
+    fopt = (tol, tol_g, cutoff_stiffness): |R| <= tol |d_eps| and max_a |g_a| <= tol_g.
     pred (N, 6, 6) the tangent of each point's last plastic step (zeros where none) for the predictor.
     Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6), status, substeps, iterations (N,) int,
     cutoff (N,) bool, mobilised (N,) = max_a etah_a / eta_f,a at the end of the step.
@@ -584,13 +685,13 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
     nchunk = min(N, 64)
     block = (N + nchunk - 1) // max(nchunk, 1)
     for c in prange(nchunk):
-        bufs_f = np.empty((12, M))
+        bufs_f = np.empty((21, M))
         bufs_b = np.zeros(M, dtype=np.bool_)
         piv = np.empty(6, dtype=np.int64)
         Dk = np.empty((M, 6))
         Dk_new = np.empty((M, 6))
         eps_end = np.empty(6)
-        vecs = np.empty((14, 6))
+        vecs = np.empty((16, 6))
         mats = np.empty((3, 6, 6))
         for p in range(c * block, min(N, (c + 1) * block)):
             st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,

@@ -10,8 +10,8 @@ Unknown: the end-of-step stress. For each plane the hardening law (2.16) is inve
 explicit function of the stress on a loading plane, ``kappa = A etah / (zeta eta_f - etah)``; a plane
 loads when its mobilised ratio ``etah`` exceeds the level ``eta(kappa_n)`` it has reached (kappa never
 decreases). The strain residual is solved by Newton's method with the analytic 6x6 Jacobian and a line
-search that keeps every plane strictly below its barrier ``etah < zeta eta_f``. The consistent tangent
-is the inverse Jacobian, corrected for the dependence of eta_f on the total strain (induced
+search; the slips of the loading planes are unknowns too (the hardening law is an equation per plane),
+so nothing is singular as a plane approaches failure. The consistent tangent is the inverse Jacobian, corrected for the dependence of eta_f on the total strain (induced
 anisotropy, 3.14-3.15). A step that does not converge is split into 2, 4, ... sub-steps inside the
 routine (``max_substep_level``); the tangent follows the sub-steps by the chain rule. A point that still
 fails returns its start-of-step stress, ``status = STATUS_FAILED`` and a suggested step ratio, never
@@ -82,7 +82,7 @@ class _Options:
     maxit: int = 30
     max_substep_level: int = 6
     tol: float = 1e-10
-    barrier: float = 1e-9
+    tol_hardening: float = 1e-12
     cutoff_stiffness: float = 1e-6
 
 
@@ -132,7 +132,7 @@ class CPAModel:
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
-        self.options = _Options(int(maxit), int(max_substep_level), float(tol), 1e-9, float(cutoff_stiffness))
+        self.options = _Options(int(maxit), int(max_substep_level), float(tol), 1e-12, float(cutoff_stiffness))
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
         self.last_failure: dict | None = None
@@ -265,7 +265,7 @@ class CPAModel:
         mobilised = np.empty(n)
         o = self.options
         iopt = np.array([o.maxit, o.max_substep_level, 1 if tangent else 0], dtype=np.int64)
-        fopt = np.array([o.tol, o.barrier, o.cutoff_stiffness])
+        fopt = np.array([o.tol, o.tol_hardening, o.cutoff_stiffness])
         p = self.params
         if tangent:
             D_arg = D
@@ -366,6 +366,7 @@ def replay(path, **model_options):
     params = parameters_from_dict(json.loads(str(data["params_json"])), source=str(path))
     options = json.loads(str(data["options_json"]))
     options.pop("barrier", None)
+    options.pop("tol_hardening", None)
     options.update(model_options)
     model = CPAModel(params, rule=str(data["rule"]), axes=data["axes"], **options)
     state = {k[len("state__"):]: v for k, v in data.items() if k.startswith("state__")}
