@@ -31,9 +31,10 @@ import scipy.sparse.linalg as spla
 
 from femgran.state import PointState
 
-__all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", "linear_solve", "LINEAR_SOLVERS"]
+__all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", "LinearSolver", "linear_solve",
+           "LINEAR_SOLVERS"]
 
-LINEAR_SOLVERS = ("superlu", "amg-gmres", "ilu-gmres")
+LINEAR_SOLVERS = ("auto", "superlu", "amg-gmres", "ilu-gmres")
 
 
 @dataclass
@@ -76,7 +77,9 @@ class SolverOptions:
     predictor : "tangent" (first guess of each step from the last converged tangent, so the prescribed
     displacements spread smoothly into the body) or "none" (prescribed DOFs only, the rest zero).
     linear_solver : "superlu" (direct), "amg-gmres" (pyamg smoothed aggregation preconditioning GMRES)
-    or "ilu-gmres"; krylov_tol : relative tolerance of the Krylov solvers.
+    or "ilu-gmres", or "auto" (the default, chosen by measurement, benchmarks/fe_newton.py: SuperLU for
+    plane strain below 200k DOFs and 3D below 10k DOFs, AMG-GMRES above); krylov_tol : relative
+    tolerance of the Krylov solvers.
     """
 
     tol: float = 1e-8
@@ -88,7 +91,7 @@ class SolverOptions:
     easy_iter: int = 6
     line_search: int = 4
     predictor: str = "tangent"
-    linear_solver: str = "superlu"
+    linear_solver: str = "auto"
     krylov_tol: float = 1e-10
 
     def __post_init__(self):
@@ -163,25 +166,72 @@ class Solution:
         raise AttributeError(name)
 
 
+def _preconditioner(K, method, near_nullspace):
+    if method == "amg-gmres":
+        import pyamg
+
+        # smoothed aggregation on the symmetric part (the tangent is mildly non-symmetric), with the
+        # rigid-body modes as near-null space
+        sym = (0.5 * (K + K.T)).tocsr()
+        return pyamg.smoothed_aggregation_solver(sym, B=near_nullspace).aspreconditioner()
+    ilu = spla.spilu(K.tocsc(), drop_tol=1e-5, fill_factor=10)
+    return spla.LinearOperator(K.shape, ilu.solve)
+
+
+def _gmres(K, b, M, tol):
+    its = [0]
+
+    def count(_):
+        its[0] += 1
+
+    x, info = spla.gmres(K, b, M=M, rtol=tol, restart=80, maxiter=10, callback=count, callback_type="pr_norm")
+    return x, info, its[0]
+
+
 def linear_solve(K: sp.spmatrix, b: np.ndarray, method: str = "superlu", tol: float = 1e-10,
                  near_nullspace: np.ndarray | None = None) -> np.ndarray:
-    """Solve K x = b (K square, possibly non-symmetric) with ``method`` in :data:`LINEAR_SOLVERS`."""
-    if method == "superlu":
-        return spla.spsolve(K.tocsc(), b, permc_spec="COLAMD")
-    if method in ("amg-gmres", "ilu-gmres"):
-        if method == "amg-gmres":
-            import pyamg
+    """Solve K x = b (K square, possibly non-symmetric) with ``method`` in :data:`LINEAR_SOLVERS` (one shot)."""
+    return LinearSolver(method, tol, near_nullspace).solve(K, b)
 
-            ml = pyamg.smoothed_aggregation_solver(K.tocsr(), B=near_nullspace, symmetry="nonsymmetric")
-            M = ml.aspreconditioner()
-        else:
-            ilu = spla.spilu(K.tocsc(), drop_tol=1e-5, fill_factor=10)
-            M = spla.LinearOperator(K.shape, ilu.solve)
-        x, info = spla.gmres(K, b, M=M, rtol=tol, restart=60, maxiter=20)
+
+class LinearSolver:
+    """K x = b for a sequence of related matrices (Newton iterations).
+
+    "superlu": direct, every time. "amg-gmres" / "ilu-gmres": GMRES preconditioned by a smoothed-
+    aggregation AMG hierarchy (pyamg) or an incomplete LU, built once and REUSED for the following
+    matrices; rebuilt when GMRES needs more than ``reuse_its`` iterations, and a direct solve is the
+    last resort. "auto": superlu for plane strain below 200k DOFs and 3D below 10k DOFs, else amg-gmres.
+    """
+
+    def __init__(self, method: str = "auto", tol: float = 1e-10, near_nullspace=None, reuse_its: int = 40):
+        if method not in LINEAR_SOLVERS:
+            raise ValueError(f"linear solver {method!r}: allowed {LINEAR_SOLVERS}")
+        self.method, self.tol, self.near_nullspace, self.reuse_its = method, tol, near_nullspace, reuse_its
+        self._M = None
+        self.last_iterations = 0
+
+    def resolve(self, n: int, dim: int) -> str:
+        if self.method != "auto":
+            return self.method
+        return "superlu" if (dim == 2 and n < 200_000) or n < 10_000 else "amg-gmres"
+
+    def solve(self, K, b, dim: int = 3):
+        method = self.resolve(K.shape[0], dim)
+        if method == "superlu":
+            return spla.spsolve(K.tocsc(), b, permc_spec="COLAMD")
+        K = K.tocsr()
+        fresh = self._M is None
+        if fresh:
+            self._M = _preconditioner(K, method, self.near_nullspace)
+        x, info, its = _gmres(K, b, self._M, self.tol)
+        if (info != 0 or its > self.reuse_its) and not fresh:
+            self._M = _preconditioner(K, method, self.near_nullspace)
+            x, info, its = _gmres(K, b, self._M, self.tol)
+        self.last_iterations = its
         if info != 0 or not np.all(np.isfinite(x)):
+            self._M = None
             return spla.spsolve(K.tocsc(), b, permc_spec="COLAMD")  # fall back to the direct solver
         return x
-    raise ValueError(f"linear solver {method!r}: allowed {LINEAR_SOLVERS}")
 
 
 class _StepFailure(Exception):
@@ -228,6 +278,7 @@ class NewtonSolver:
         self.free = np.setdiff1d(np.arange(n), self.constrained)
         self._near_nullspace = None
         self._committed_tangent = None
+        self.linear = None  # LinearSolver, made at the first solve
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -271,10 +322,13 @@ class NewtonSolver:
         return self._near_nullspace
 
     def _solve_free(self, K, rhs_free):
-        opt = self.options
         Kff = K[self.free][:, self.free]
-        ns = self._nullspace() if opt.linear_solver == "amg-gmres" else None
-        x = linear_solve(Kff, rhs_free, opt.linear_solver, opt.krylov_tol, ns)
+        if self.linear is None:
+            opt = self.options
+            method = LinearSolver(opt.linear_solver).resolve(self.free.size, self.disc.dim)
+            self.linear = LinearSolver(method, opt.krylov_tol,
+                                       self._nullspace() if method == "amg-gmres" else None)
+        x = self.linear.solve(Kff, rhs_free, self.disc.dim)
         if not np.all(np.isfinite(x)):
             raise _StepFailure("linear solve failed (singular tangent?)")
         return x

@@ -55,7 +55,7 @@ def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) 
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "superlu", write_every: int = 1, plots: bool = True):
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     Parameters

@@ -66,7 +66,8 @@ def _common(p, default_out):
     p.add_argument("--alpha", type=float, nargs="+", default=[0.0], help="deposition angle(s) [deg]")
     p.add_argument("--steps", type=int, default=None, help="nominal number of load steps")
     p.add_argument("--order", type=int, choices=[1, 2], default=None, help="element order")
-    p.add_argument("--linear-solver", default="superlu", choices=["superlu", "amg-gmres", "ilu-gmres"])
+    p.add_argument("--linear-solver", default="auto", choices=["auto", "superlu", "amg-gmres", "ilu-gmres"],
+                   help="auto: SuperLU for small and plane-strain problems, AMG-GMRES for large 3D ones")
     p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -64,7 +64,7 @@ def run_folder(out) -> Path | None:
     return p
 
 
-def solver_options(linear_solver: str = "superlu", **kw):
+def solver_options(linear_solver: str = "auto", **kw):
     from femgran.solver import SolverOptions
 
     return SolverOptions(linear_solver=linear_solver, **kw)

@@ -64,7 +64,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
             depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "superlu", write_every: int = 1, plots: bool = True):
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
     Parameters

@@ -44,7 +44,7 @@ def _weighted_cv(values, weights):
 
 def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
              axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
-             out=None, progress: bool = False, linear_solver: str = "superlu", write_every: int = 1,
+             out=None, progress: bool = False, linear_solver: str = "auto", write_every: int = 1,
              plots: bool = True, volumetric: str = "standard"):
     """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
 
