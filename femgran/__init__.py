@@ -12,5 +12,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.1.0+src"
 
 from femgran import cases  # noqa: E402
+from femgran.assembly import Discretisation  # noqa: E402
+from femgran.solver import Dirichlet, NewtonSolver, SolverOptions  # noqa: E402
 
-__all__ = ["cases", "__version__"]
+__all__ = ["cases", "__version__", "Discretisation", "Dirichlet", "NewtonSolver", "SolverOptions"]
