@@ -91,17 +91,91 @@ def _series_and_slope(x, coeffs):
 
 
 @njit(cache=True)
-def _plane_strengths(eps6, normals6, om6, coeffs, eta0, beta, eta_f, deta_f):
-    """eta_f,a and d eta_f,a / d x_a for the total strain eps6 (eqs. 2.4, 3.14, 3.15).
+def _lambda6(eps6, beta, ahat, bhat, out):
+    """Induced tensor Lambda (Mandel) for the total strain eps6 (eqs. 3.8, 3.15).
 
-    x_a = n_a.(Omega + beta dev(eps)).n_a; dev is taken on eps6 here.
+    Lambda = beta |e| n^Omega, n^Omega = alpha_hat n^e + beta_hat dev(n^e n^e) normalised; with
+    beta_hat = 0 (alpha_hat > 0) exactly beta e.
     """
     tr3 = (eps6[0] + eps6[1] + eps6[2]) / 3.0
+    norm = 0.0
+    for i in range(6):
+        e = eps6[i] - tr3 if i < 3 else eps6[i]
+        out[i] = e
+        norm += e * e
+    norm = np.sqrt(norm)
+    if bhat == 0.0 and ahat > 0.0:
+        for i in range(6):
+            out[i] *= beta
+        return
+    if norm == 0.0:
+        for i in range(6):
+            out[i] = 0.0
+        return
+    # n^e as a 3x3 matrix, its square, the deviator of the square
+    a11, a22, a33 = out[0] / norm, out[1] / norm, out[2] / norm
+    a23, a13, a12 = out[3] / norm * ISQ2, out[4] / norm * ISQ2, out[5] / norm * ISQ2
+    q11 = a11 * a11 + a12 * a12 + a13 * a13
+    q22 = a12 * a12 + a22 * a22 + a23 * a23
+    q33 = a13 * a13 + a23 * a23 + a33 * a33
+    q23 = a12 * a13 + a22 * a23 + a23 * a33
+    q13 = a11 * a13 + a12 * a23 + a13 * a33
+    q12 = a11 * a12 + a12 * a22 + a13 * a23
+    qt = (q11 + q22 + q33) / 3.0
+    d0 = ahat * a11 + bhat * (q11 - qt)
+    d1 = ahat * a22 + bhat * (q22 - qt)
+    d2 = ahat * a33 + bhat * (q33 - qt)
+    d3 = (ahat * a23 + bhat * q23) * SQ2
+    d4 = (ahat * a13 + bhat * q13) * SQ2
+    d5 = (ahat * a12 + bhat * q12) * SQ2
+    dn = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3 + d4 * d4 + d5 * d5)
+    if dn == 0.0:
+        for i in range(6):
+            out[i] = 0.0
+        return
+    f = beta * norm / dn
+    out[0], out[1], out[2], out[3], out[4], out[5] = f * d0, f * d1, f * d2, f * d3, f * d4, f * d5
+
+
+@njit(cache=True)
+def _lambda_and_slope(eps6, beta, ahat, bhat, lam6, L, scratch):
+    """Lambda (6,) and L = d Lambda / d eps (6, 6), Mandel. L is exact for the linear law (beta P_dev);
+    for the general law (3.8) it is a central difference with step 1e-5 |e| (Lambda is homogeneous of
+    degree one in e, so the relative error is ~1e-10), and beta P_dev at e = 0."""
+    _lambda6(eps6, beta, ahat, bhat, lam6)
+    tr = 0.0
+    norm = 0.0
+    for i in range(6):
+        e = eps6[i] - (eps6[0] + eps6[1] + eps6[2]) / 3.0 if i < 3 else eps6[i]
+        norm += e * e
+    norm = np.sqrt(norm)
+    if (bhat == 0.0 and ahat > 0.0) or norm == 0.0:
+        for i in range(6):
+            for j in range(6):
+                L[i, j] = beta * ((1.0 if i == j else 0.0) - (1.0 / 3.0 if (i < 3 and j < 3) else 0.0))
+        return
+    h = 1e-5 * norm
+    ep = scratch[0]
+    lp = scratch[1]
+    lm = scratch[2]
+    for j in range(6):
+        for i in range(6):
+            ep[i] = eps6[i]
+        ep[j] += h
+        _lambda6(ep, beta, ahat, bhat, lp)
+        ep[j] -= 2.0 * h
+        _lambda6(ep, beta, ahat, bhat, lm)
+        for i in range(6):
+            L[i, j] = (lp[i] - lm[i]) / (2.0 * h)
+
+
+@njit(cache=True)
+def _plane_strengths(normals6, om6, lam6, coeffs, eta0, eta_f, deta_f):
+    """eta_f,a and d eta_f,a / d x_a with x_a = n_a.(Omega + Lambda).n_a (eqs. 2.4, 3.14)."""
     for a in range(normals6.shape[0]):
         x = 0.0
         for i in range(6):
-            e = eps6[i] - tr3 if i < 3 else eps6[i]
-            x += normals6[a, i] * (om6[i] + beta * e)
+            x += normals6[a, i] * (om6[i] + lam6[i])
         val, der = _series_and_slope(x, coeffs)
         eta_f[a] = eta0 * val
         deta_f[a] = eta0 * der
@@ -470,8 +544,8 @@ def _finish_substep(kap, kap_n, active, dkap):
 
 
 @njit(cache=True)
-def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A,
-                  inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
+def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, ahat, bhat,
+                  zeta, A, inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
                   sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats, pred):
     """One Gauss point: adaptive sub-stepping around :func:`_solve_substep`, chain-rule tangent.
 
@@ -502,7 +576,10 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     trial = vecs[6]
     col = vecs[7]
     sn6 = vecs[8]
-    dev_nn = vecs[9]
+    dx_de = vecs[9]
+    lam6 = vecs[16]
+    lam_scratch = vecs[17:20]
+    Lam = mats[3]  # d Lambda / d eps (Mandel)
     tmp = vecs[10:16]
     J = mats[0]
     B = mats[1]
@@ -547,7 +624,8 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             frac = k / m
             for i in range(6):
                 eps_k[i] = eps_n[i] + frac * de[i]
-            _plane_strengths(eps_k, nn6, om6, coeffs, eta0, beta, eta_f, deta_f)
+            _lambda_and_slope(eps_k, beta, ahat, bhat, lam6, Lam, lam_scratch)
+            _plane_strengths(nn6, om6, lam6, coeffs, eta0, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                      eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work,
                                      r, piv, delta, trial, tmp, pred, kap_it, bvec, dk_step, kap_try)
@@ -589,17 +667,19 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                         zef = zeta * ef
                         c = cohesion[a]
                         sig0 = c / ef
-                        dkap_def = -A * etah * zeta / ((zef - etah) * (zef - etah))  # d kappa / d eta_f
+                        # d kappa / d eta_f at fixed stress, from g = etah - zeta eta_f kappa/(A+kappa) = 0
+                        dkap_def = -(etah / ef) * work[a, 5]
                         ddil_def = eta_c_ratio - tau * c / (ef * ef * (sigma_N + sig0) * (sigma_N + sig0))
-                        for i in range(3):
-                            dev_nn[i] = nn6[a, i] - 1.0 / 3.0
-                        for i in range(3, 6):
-                            dev_nn[i] = nn6[a, i]
-                        scale = deta_f[a] * beta * frac
+                        for j in range(6):  # d x_a / d eps = n_a n_a : d Lambda / d eps
+                            acc = 0.0
+                            for i in range(6):
+                                acc += nn6[a, i] * Lam[i, j]
+                            dx_de[j] = acc
+                        scale = deta_f[a] * frac
                         for i in range(6):
                             dGi = wt * ((sn6[i] - dil * nn6[a, i]) * dkap_def - dkap[a] * ddil_def * nn6[a, i])
                             for j in range(6):
-                                B[i, j] -= dGi * scale * dev_nn[j]
+                                B[i, j] -= dGi * scale * dx_de[j]
                 # Dsig_k = J^-1 B
                 for j in range(6):
                     for i in range(6):
@@ -631,12 +711,13 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     if beta != 0.0:
                         ef = eta_f[a]
                         zef = zeta * ef
-                        dkap_def = -A * etah * zeta / ((zef - etah) * (zef - etah))
-                        scale = dkap_def * deta_f[a] * beta * frac
-                        for i in range(3):
-                            Dk_new[a, i] += scale * (nn6[a, i] - 1.0 / 3.0)
-                        for i in range(3, 6):
-                            Dk_new[a, i] += scale * nn6[a, i]
+                        dkap_def = -(etah / ef) * kprime
+                        scale = dkap_def * deta_f[a] * frac
+                        for j in range(6):
+                            acc = 0.0
+                            for i in range(6):
+                                acc += nn6[a, i] * Lam[i, j]
+                            Dk_new[a, j] += scale * acc
                 for a in range(M if k < m else 0):
                     for j in range(6):
                         Dk[a, j] = Dk_new[a, j]
@@ -667,7 +748,8 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
 
 
 @njit(cache=True, parallel=True)
-def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, zeta, A, inv_t,
+def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, ahat, bhat, zeta, A,
+              inv_t,
               eta_c_ratio, comp, stiff, iopt, fopt, sig_out, kap_out, D_out, status, substeps, iterations, cutoff,
               mobilised, pred):
     """Update N Gauss points (Mandel vectors). Arrays:
@@ -691,11 +773,12 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
         Dk = np.empty((M, 6))
         Dk_new = np.empty((M, 6))
         eps_end = np.empty(6)
-        vecs = np.empty((16, 6))
-        mats = np.empty((3, 6, 6))
+        vecs = np.empty((20, 6))
+        mats = np.empty((4, 6, 6))
         for p in range(c * block, min(N, (c + 1) * block)):
             st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,
-                                            om6, coeffs, eta0, beta, zeta, A, inv_t, eta_c_ratio, comp, stiff,
+                                            om6, coeffs, eta0, beta, ahat, bhat, zeta, A, inv_t, eta_c_ratio, comp,
+                                            stiff,
                                             iopt, fopt, sig_out[p], kap_out[p], D_out[p], bufs_f, bufs_b, piv,
                                             Dk, Dk_new, vecs, mats, pred[p])
             status[p] = st
@@ -705,7 +788,8 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
             # mobilised ratio at the end of the step (output only)
             for i in range(6):
                 eps_end[i] = eps_n[p, i] + de[p, i]
-            _plane_strengths(eps_end, nn6, om6, coeffs, eta0, beta, bufs_f[0, :M], bufs_f[1, :M])
+            _lambda6(eps_end, beta, ahat, bhat, vecs[16])
+            _plane_strengths(nn6, om6, vecs[16], coeffs, eta0, bufs_f[0, :M], bufs_f[1, :M])
             best = 0.0
             for a in range(M):
                 n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]

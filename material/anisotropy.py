@@ -93,9 +93,18 @@ def deviator(a: np.ndarray) -> np.ndarray:
     return a - tr[..., None, None] / 3.0 * np.eye(3)
 
 
-def induced_tensor(beta: float, strain: np.ndarray) -> np.ndarray:
-    """Lambda = beta dev(strain), strain tension positive (eq. 3.15); (..., 3, 3)."""
-    return beta * deviator(strain)
+def induced_tensor(beta: float, strain: np.ndarray, alpha_hat: float = 1.0, beta_hat: float = 0.0) -> np.ndarray:
+    """Induced anisotropy tensor Lambda, (..., 3, 3) (eqs. 3.8, 3.15).
+
+    Lambda = beta |e| n^Omega with n^Omega = alpha_hat n^e + beta_hat dev(n^e n^e) normalised
+    (:func:`coaxial_fabric_direction`), e = dev(strain), strain tension positive. With the defaults
+    alpha_hat = 1, beta_hat = 0 this is exactly Lambda = beta e (3.15).
+    """
+    e = deviator(strain)
+    if beta_hat == 0.0 and alpha_hat > 0.0:
+        return beta * e
+    norm = np.sqrt(np.einsum("...ij,...ij->...", e, e))
+    return beta * norm[..., None, None] * coaxial_fabric_direction(strain, alpha_hat, beta_hat)
 
 
 def series(x: np.ndarray, coeffs) -> np.ndarray:
@@ -134,7 +143,8 @@ def friction_coefficient(params: CPAParameters, normals, axes=None, strain=None)
     """
     tensor = inherent_tensor(params.omega1, axes)
     if strain is not None:
-        tensor = tensor + induced_tensor(params.beta, np.asarray(strain, dtype=float))
+        tensor = tensor + induced_tensor(params.beta, np.asarray(strain, dtype=float), params.alpha_hat,
+                                         params.beta_hat)
     return params.eta0 * series(_bias(normals, tensor), params.a)
 
 

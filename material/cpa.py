@@ -170,9 +170,11 @@ class CPAModel:
         eps6 = _k.to_mandel(np.ascontiguousarray(strain))
         out = np.empty((eps6.shape[0], self.n_planes))
         d = np.empty(self.n_planes)
+        lam = np.empty(6)
+        p = self.params
         for i in range(eps6.shape[0]):  # small helper for output, not on the hot path
-            _k._plane_strengths(eps6[i], self._nn6, self._om6, self._coeffs, self.params.eta0, self.params.beta,
-                                out[i], d)
+            _k._lambda6(eps6[i], p.beta, p.alpha_hat, p.beta_hat, lam)
+            _k._plane_strengths(self._nn6, self._om6, lam, self._coeffs, p.eta0, out[i], d)
         return out[0] if squeeze else out
 
     # ----------------------------------------------------------------------------- state
@@ -283,7 +285,8 @@ class CPAModel:
             numba.set_num_threads(int(self.threads))
         try:
             _k.cpa_batch(sig6, de6, eps6, kap_n, self.normals, self._nn6, self.weights, self._cohesion, self._om6,
-                         self._coeffs, p.eta0, p.beta, p.zeta, p.A, 1.0 / p.t, p.eta_c_ratio, self._comp, self._stiff,
+                         self._coeffs, p.eta0, p.beta, p.alpha_hat, p.beta_hat, p.zeta, p.A, 1.0 / p.t,
+                         p.eta_c_ratio, self._comp, self._stiff,
                          iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised, pred)
         finally:
             if prev_threads is not None:

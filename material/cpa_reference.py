@@ -13,14 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from material.anisotropy import deviator, series
+from material.anisotropy import induced_tensor, series
 from material.elastic import isotropic_compliance
 
 
 def plane_strengths(model, strain: np.ndarray) -> np.ndarray:
     """eta_f of every plane of ``model`` for the total strain (3, 3) (eqs. 2.4, 3.14, 3.15)."""
     p = model.params
-    omega = model.axes @ np.diag([p.omega1, -2 * p.omega1, p.omega1]) @ model.axes.T + p.beta * deviator(strain)
+    omega = (model.axes @ np.diag([p.omega1, -2 * p.omega1, p.omega1]) @ model.axes.T
+             + induced_tensor(p.beta, strain, p.alpha_hat, p.beta_hat))
     x = np.einsum("ai,ij,aj->a", model.normals, omega, model.normals)
     return p.eta0 * series(x, p.a)
 

@@ -64,6 +64,11 @@ class CPAParameters:
         finite slip kappa* = A / (zeta - 1) (thesis 2.3.4).
     beta : float
         Induced anisotropy Lambda = beta * dev(total strain), tension positive [-], >= 0 (eq. 3.15).
+    alpha_hat, beta_hat : float
+        Constants of the general coaxial evolution law (eq. 3.8): the induced tensor is
+        Lambda = beta |e| n^Omega with n^Omega = alpha_hat n^e + beta_hat dev(n^e n^e), normalised
+        (n^e = e / |e|, e the strain deviator). The defaults alpha_hat = 1, beta_hat = 0 give exactly
+        Lambda = beta e (eq. 3.15 / the linear form 3.9). alpha_hat >= 0.
     """
 
     E: float
@@ -79,6 +84,8 @@ class CPAParameters:
     b: tuple[float, ...] = ()
     zeta: float = 1.0
     beta: float = 0.0
+    alpha_hat: float = 1.0
+    beta_hat: float = 0.0
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -108,6 +115,11 @@ class CPAParameters:
                 raise ValueError(
                     f"parameter {spec.name!r} = {value!r} is out of range; allowed: {spec.allowed} [{spec.unit}]"
                 )
+        if self.alpha_hat == 0.0 and self.beta_hat == 0.0 and self.beta != 0.0:
+            raise ValueError(
+                "parameters 'alpha_hat' = 0 and 'beta_hat' = 0 give no direction to the induced tensor while "
+                f"'beta' = {self.beta!r}; allowed: alpha_hat > 0 or beta_hat != 0 (defaults 1, 0: Lambda = beta e)"
+            )
 
     # ------------------------------------------------------------------ derived quantities
     @property
@@ -163,6 +175,8 @@ _FIELD_SPECS = (
     _FieldSpec("b", "-", "finite numbers", None),
     _FieldSpec("zeta", "-", "1 <= zeta <= 2", lambda v: 1.0 <= v <= 2.0),
     _FieldSpec("beta", "-", "0 <= beta (finite)", lambda v: math.isfinite(v) and v >= 0),
+    _FieldSpec("alpha_hat", "-", "0 <= alpha_hat (finite)", lambda v: math.isfinite(v) and v >= 0),
+    _FieldSpec("beta_hat", "-", "finite", lambda v: math.isfinite(v)),
 )
 FIELD_NAMES = tuple(s.name for s in _FIELD_SPECS) + ("name",)
 UNITS = {s.name: s.unit for s in _FIELD_SPECS}

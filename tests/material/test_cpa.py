@@ -63,10 +63,15 @@ def test_isotropic_compression_is_elastic_with_bulk_modulus():
         ("ottawa_c109", 0.0, 90.0, 40),  # near failure (mobilised ~0.9)
         ("ottawa_c109_induced", 0.1, 45.0, 15),
         ("ottawa_c109_induced", 5.0, 60.0, 30),  # induced anisotropy: eta_f depends on strain
+        ("coaxial", 5.0, 20.0, 20),  # general coaxial law (3.8), alpha_hat = 0.8, beta_hat = 0.5
     ],
 )
 def test_consistent_tangent_matches_finite_differences(preset, beta, alpha, steps):
-    model = CPAModel(load_preset(preset).replace(beta=beta), axes=axes_from_alpha(alpha))
+    if preset == "coaxial":
+        params = load_preset("ottawa_c109_induced").replace(beta=beta, alpha_hat=0.8, beta_hat=0.5)
+    else:
+        params = load_preset(preset).replace(beta=beta)
+    model = CPAModel(params, axes=axes_from_alpha(alpha))
     sig, st = _loaded(model, steps - 1)
     _, st1, D = model.update(DE[None], sig, st)
     assert st1["status"][0] == STATUS_OK
@@ -101,8 +106,10 @@ def test_substepped_tangent_is_consistent():
     assert err < 1e-5, err
 
 
-def test_converged_stress_zeroes_the_numpy_reference_residual():
-    model = CPAModel(load_preset("ottawa_c109_induced").replace(beta=5.0), axes=axes_from_alpha(20.0))
+@pytest.mark.parametrize("alpha_hat,beta_hat", [(1.0, 0.0), (0.8, 0.5)])
+def test_converged_stress_zeroes_the_numpy_reference_residual(alpha_hat, beta_hat):
+    params = load_preset("ottawa_c109_induced").replace(beta=5.0, alpha_hat=alpha_hat, beta_hat=beta_hat)
+    model = CPAModel(params, axes=axes_from_alpha(20.0))
     sig, st = _loaded(model, 12)
     new, st1, _ = model.update(DE[None], sig, st)
     r = residual(model, new[0], sig[0], DE, st["kappa"][0], st["strain"][0] + DE)
@@ -265,3 +272,15 @@ def test_bad_construction_is_named():
         CPAModel("ottawa_c109", axes=np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError, match="maxit"):
         CPAModel("ottawa_c109", maxit=0)
+
+
+def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one():
+    base = load_preset("ottawa_c109_induced").replace(beta=5.0)
+    ends = {}
+    for key, params in {"linear": base, "same": base.replace(alpha_hat=2.0),
+                        "coaxial": base.replace(alpha_hat=0.5, beta_hat=1.0)}.items():
+        sig, st = _loaded(CPAModel(params), 15)
+        ends[key] = sig[0]
+    # alpha_hat only scales the direction, which is normalised: identical to Lambda = beta e
+    np.testing.assert_allclose(ends["same"], ends["linear"], rtol=1e-9)
+    assert np.abs(ends["coaxial"] - ends["linear"]).max() > 0.1

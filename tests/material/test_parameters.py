@@ -23,7 +23,15 @@ INVALID = [
     ("omega1_c", 0.6, "-0.5 < omega1_c < 0.5"),
     ("zeta", 0.99, "1 <= zeta <= 2"), ("zeta", 2.5, "1 <= zeta <= 2"),
     ("beta", -0.1, "0 <= beta"), ("beta", math.inf, "0 <= beta"),
+    ("alpha_hat", -0.1, "0 <= alpha_hat"), ("alpha_hat", math.nan, "0 <= alpha_hat"),
+    ("beta_hat", math.inf, "finite"),
 ]
+
+
+def test_coaxial_law_needs_a_direction():
+    with pytest.raises(ValueError, match="'alpha_hat' = 0 and 'beta_hat' = 0"):
+        CPAParameters(**BASE, beta=1.0, alpha_hat=0.0, beta_hat=0.0)
+    CPAParameters(**BASE, beta=0.0, alpha_hat=0.0, beta_hat=0.0)  # no induced anisotropy: fine
 
 
 @pytest.mark.parametrize("key,value,allowed", INVALID)
