@@ -44,6 +44,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
+from material.tensors import from_mandel, to_mandel, to_mandel_matrix
 
 __all__ = [
     "COMPONENTS",
@@ -60,45 +61,16 @@ __all__ = [
     "plane_strain",
     "true_triaxial",
     "rotation",
-    "to_mandel",
-    "from_mandel",
-    "tangent_to_mandel",
     "mandel_rotation",
 ]
 
-_IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+_IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))  # material.tensors.MANDEL_INDEX
 _W = np.array([1.0, 1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0), math.sqrt(2.0)])
 _DELTA = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 _BACKTRACKS = 3  # halvings of a Newton correction the law could not integrate
-_I_IDX = np.array([i for i, _ in _IJ])
-_J_IDX = np.array([j for _, j in _IJ])
 
 
 # ---------------------------------------------------------------------------- Mandel algebra
-def to_mandel(t: np.ndarray) -> np.ndarray:
-    """Symmetric (..., 3, 3) tensor -> (..., 6) Mandel vector (shear components times sqrt 2)."""
-    t = np.asarray(t, dtype=float)
-    return t[..., _I_IDX, _J_IDX] * _W
-
-
-def from_mandel(v: np.ndarray) -> np.ndarray:
-    """(..., 6) Mandel vector -> symmetric (..., 3, 3) tensor."""
-    v = np.asarray(v, dtype=float)
-    t = np.zeros(v.shape[:-1] + (3, 3))
-    comp = v / _W
-    for k, (i, j) in enumerate(_IJ):
-        t[..., i, j] = comp[..., k]
-        t[..., j, i] = comp[..., k]
-    return t
-
-
-def tangent_to_mandel(c: np.ndarray) -> np.ndarray:
-    """(..., 3, 3, 3, 3) tangent with minor symmetries -> (..., 6, 6) Mandel matrix (sig_M = D eps_M)."""
-    c = np.asarray(c, dtype=float)
-    d = c[..., _I_IDX[:, None], _J_IDX[:, None], _I_IDX[None, :], _J_IDX[None, :]]
-    return d * np.outer(_W, _W)
-
-
 def mandel_rotation(frame) -> np.ndarray:
     """6x6 Q with to_mandel(R^T T R) = Q @ to_mandel(T): components of T in the frame R (columns = axes)."""
     r = np.asarray(frame, dtype=float)
@@ -411,7 +383,7 @@ class _Point:
 def _update(model, point: _Point, d_eps: np.ndarray):
     stress, state, tangent = model.update(from_mandel(d_eps)[None], from_mandel(point.stress)[None], point.state)
     failed = int(np.asarray(state["status"])[0]) == STATUS_FAILED
-    return to_mandel(stress[0]), state, tangent_to_mandel(np.asarray(tangent)[0]), failed
+    return to_mandel(stress[0]), state, to_mandel_matrix(np.asarray(tangent)[0]), failed
 
 
 def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int):
@@ -510,7 +482,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     state0 = model.initial_state(1, stress=s0) if state is None else copy_state(state)
     _, state_probe, tangent0 = model.update(np.zeros((1, 3, 3)), s0[None], state0)
     point = _Point(to_mandel(state0["strain"][0]) if "strain" in state0 else np.zeros(6), to_mandel(s0), 0.0,
-                   state0, tangent_to_mandel(np.asarray(tangent0)[0]))
+                   state0, to_mandel_matrix(np.asarray(tangent0)[0]))
     strain_ref = point.strain.copy()
 
     rows_s, rows_e, rows_u = [point.stress], [point.strain - strain_ref], [0.0]

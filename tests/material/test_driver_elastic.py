@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from material import LinearElastic, driver
-from material.driver import LoadPath, PathFailure, from_mandel, mandel_rotation, run_path, tangent_to_mandel, to_mandel
+from material.driver import LoadPath, PathFailure, mandel_rotation, run_path
+from material.tensors import from_mandel, to_mandel
+from material.tensors import to_mandel_matrix as tangent_to_mandel
 from material.elastic import isotropic_stiffness
 from material.results import read_csv
 
