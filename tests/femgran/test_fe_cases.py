@@ -195,3 +195,16 @@ def test_inconsistent_material_is_rejected_before_computing():
         footing(_PlaneStressOnly(), resolution=1)
     with pytest.raises(ValueError, match="lacks the method"):
         triaxial(object())
+
+
+def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
+    from femgran.cli import main
+
+    out = tmp_path / "tx"
+    assert main(["triaxial", "--alpha", "0", "90", "--resolution", "1", "--axial-strain", "0.005", "--steps", "2",
+                 "--out", str(out), "--no-progress"]) == 0
+    rows = (out / "summary.csv").read_text().splitlines()
+    assert rows[0].startswith("alpha,peak_q_kPa") and len(rows) == 3
+    assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_vs_eps_a.png").is_file()
+    assert main(["footing", "--law", "von_mises", "--unit-weight", "0", "--resolution", "1", "--steps", "2",
+                 "--settlement", "0.002", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0
