@@ -221,8 +221,32 @@ def _drive(state: DEMState, segments: list, record_every: int, out, checkpoint_e
     run = Run(history=rec.history(), final=state, snapshots=rec.snapshots, meta=meta)
     if out is not None:
         save(state, out / "final.npz")
+        _save_snapshots(out / "snapshots.npz", rec.snapshots, state.n_particles)
         (out / "run.json").write_text(json.dumps(meta, indent=2, default=str))
     return run
+
+
+def _save_snapshots(path: Path, snapshots: list, n: int) -> None:
+    np.savez(path, rows=np.array([s[0] for s in snapshots], int),
+             positions=np.array([s[1] for s in snapshots]) if snapshots else np.zeros((0, n, 2)),
+             strains=np.array([s[2] for s in snapshots]) if snapshots else np.zeros((0, 2, 2)))
+
+
+def load_run(folder) -> Run:
+    """A :class:`Run` from its output folder (history.csv, final.npz, snapshots.npz, run.json)."""
+    folder = Path(folder)
+    for name in ("history.csv", "final.npz"):
+        if not (folder / name).is_file():
+            raise FileNotFoundError(f"{str(folder)!r} is not a DEM run folder: {name} is missing")
+    with (folder / "history.csv").open() as fh:
+        rows = list(csv.reader(fh))
+    history = {c: np.array([float(r[k]) for r in rows[1:]]) for k, c in enumerate(rows[0])}
+    snaps = []
+    if (folder / "snapshots.npz").is_file():
+        with np.load(folder / "snapshots.npz", allow_pickle=False) as z:
+            snaps = [(int(r), p, e) for r, p, e in zip(z["rows"], z["positions"], z["strains"])]
+    meta = json.loads((folder / "run.json").read_text()) if (folder / "run.json").is_file() else {}
+    return Run(history=history, final=load(folder / "final.npz"), snapshots=snaps, meta=meta)
 
 
 def _write_checkpoint(state: DEMState, ckpt: Path, segment: int, step: int, rec: _Recorder) -> None:

@@ -175,11 +175,15 @@ class Fabric:
         if order > 1:
             from scipy.optimize import least_squares
 
-            def resid(x):
-                xx = x[1] * np.cos(2 * t) + x[2] * np.sin(2 * t)
-                return x[0] * (1 + xx + sum(x[3 + k] * xx ** (k + 2) for k in range(order - 1))) - self.values
+            scale = abs(c) if c != 0 else 1.0
 
-            sol = least_squares(resid, np.concatenate([[c], w, a]), x_scale="jac")
+            def resid(x):  # relative residuals (values can be ~1e-5 m for MIL)
+                xx = x[1] * np.cos(2 * t) + x[2] * np.sin(2 * t)
+                model = x[0] * (1 + xx + sum(x[3 + k] * xx ** (k + 2) for k in range(order - 1)))
+                return (model - self.values) / scale
+
+            sol = least_squares(resid, np.concatenate([[c], w, a]), x_scale="jac", xtol=1e-15, ftol=1e-15,
+                                gtol=1e-15, max_nfev=2000)
             c, w, a = sol.x[0], sol.x[1:3], sol.x[3:]
         omega = np.array([[w[0], w[1]], [w[1], -w[0]]])
         out = FabricFit(order, float(c), omega, np.asarray(a), 0.0)

@@ -1,0 +1,215 @@
+"""Figures of the thesis's chapter 3 from a sweep folder (PNG, matplotlib; glyphs with pyvista).
+
+Numbering follows the thesis: 23-28 (one test: biaxial response and strain rotation), 29-30 (sample
+size N1-N3), 31-34 (contact parameters T01-T07), 38 (fabric distribution with Kanatani fits of order
+1-3), 39-41 (delta during biaxial and rotation), 42 (superquadric glyphs of n^Omega over n^e), 43 (MIL
+against areal porosity), 44 (alpha_deps, alpha_sigma, alpha_Omega during rotation).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .sweep import read_csv
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _load(out: Path, test: str):
+    f = out / test
+    d = {"biaxial": read_csv(f / "biaxial" / "history.csv"), "rotation": read_csv(f / "rotation" / "history.csv")}
+    for stage in ("biaxial", "rotation"):
+        for m in ("mil", "areal_porosity"):
+            p = f / stage / f"fabric_{m}.csv"
+            if p.is_file():
+                d[f"{stage}_{m}"] = read_csv(p)
+    return d
+
+
+def _unwrap(a):
+    return np.degrees(np.unwrap(np.radians(2 * np.asarray(a)))) / 2
+
+
+def sweep_figures(out, tests) -> list[Path]:
+    plt = _plt()
+    out = Path(out)
+    figdir = out / "figures"
+    figdir.mkdir(parents=True, exist_ok=True)
+    data = {t: _load(out, t) for t in tests}
+    main = "T06" if "T06" in data else tests[0]
+    written = []
+
+    def save(fig, name):
+        fig.tight_layout()
+        path = figdir / name
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+
+    b, r = data[main]["biaxial"], data[main]["rotation"]
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(100 * b["eps_q"], b["q_kPa"] / b["p_kPa"])
+    ax.set(xlabel="eps_q [%]", ylabel="q / p [-]", title=f"Fig. 23 ({main}): deviatoric stress ratio")
+    save(fig, "fig23_stress_ratio.png")
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(100 * b["eps_q"], 100 * b["eps_v"])
+    ax.set(xlabel="eps_q [%]", ylabel="eps_v [%] (compression +)", title=f"Fig. 24 ({main}): volumetric strain")
+    save(fig, "fig24_volumetric.png")
+    a = _unwrap(r["alpha_target_deg"])
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(a, 0.5 * (r["eps_xx"] - r["eps_yy"]), label="(eps_xx - eps_yy)/2")
+    ax.plot(a, r["eps_xy"], label="eps_xy")
+    ax.set(xlabel="alpha_eps [deg]", ylabel="deviatoric strain (tension +)", title="Fig. 25: strain components")
+    ax.legend()
+    save(fig, "fig25_strain_components.png")
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(a[1:], np.diff(0.5 * (r["eps_xx"] - r["eps_yy"])), label="d(eps_xx - eps_yy)/2")
+    ax.plot(a[1:], np.diff(r["eps_xy"]), label="d eps_xy")
+    ax.set(xlabel="alpha_eps [deg]", ylabel="strain increment", title="Fig. 26: strain increments")
+    ax.legend()
+    save(fig, "fig26_strain_increments.png")
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for c in ("sigma_xx_kPa", "sigma_yy_kPa", "sigma_xy_kPa"):
+        ax.plot(a, -r[c], label=c.replace("_kPa", "") + " (comp. +)")
+    ax.set(xlabel="alpha_eps [deg]", ylabel="stress [kPa]", title="Fig. 27: stress components")
+    ax.legend()
+    save(fig, "fig27_stress_components.png")
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(_unwrap(r["alpha_deps_deg"][1:]), _unwrap(r["alpha_sigma_deg"][1:]), ".")
+    lim = [np.nanmin(_unwrap(r["alpha_deps_deg"][1:])), np.nanmax(_unwrap(r["alpha_deps_deg"][1:]))]
+    ax.plot(lim, lim, "k--", lw=0.8, label="coaxial")
+    ax.set(xlabel="alpha_deps [deg]", ylabel="alpha_sigma [deg]", title="Fig. 28: stress vs strain-increment direction")
+    ax.legend()
+    save(fig, "fig28_alpha_sigma_vs_alpha_deps.png")
+
+    for number, group, ylabel, column in ((29, ("N1", "N2", "N3"), "q / p", None), (30, ("N1", "N2", "N3"), "eps_v [%]", "eps_v"),
+                                          (31, ("T01", "T02", "T03"), "q / p", None), (32, ("T01", "T02", "T03"), "eps_v [%]", "eps_v"),
+                                          (33, ("T04", "T05", "T06", "T07"), "q / p", None), (34, ("T04", "T05", "T06", "T07"), "eps_v [%]", "eps_v")):
+        present = [t for t in group if t in data]
+        if not present:
+            continue
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for t in present:
+            h = data[t]["biaxial"]
+            y = h["q_kPa"] / h["p_kPa"] if column is None else 100 * h[column]
+            ax.plot(100 * h["eps_q"], y, label=t)
+        ax.set(xlabel="eps_q [%]", ylabel=ylabel, title=f"Fig. {number}")
+        ax.legend()
+        save(fig, f"fig{number}_{'_'.join(present)}.png")
+
+    # Fig. 38: distribution of n (and MIL) at the end of the biaxial stage with fits of order 1-3
+    from .experiments import load_run
+    from .stereology import fabric
+
+    run = load_run(out / main / "biaxial")
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4), subplot_kw={"projection": "polar"})
+    for ax, measure in zip(axes, ("areal_porosity", "mil")):
+        fab = fabric(run.final, measure=measure, grid_spacing_m=1e-5)
+        th = np.radians(np.concatenate([fab.directions_deg, fab.directions_deg + 180]))
+        ax.plot(th, np.concatenate([fab.values, fab.values]), "o", ms=3, label="measured")
+        fine = np.linspace(0, 360, 361)
+        for order in (1, 2, 3):
+            ax.plot(np.radians(fine), fab.fit(order)(fine), label=f"order {order}")
+        ax.set_title(f"Fig. 38 ({main}): {measure}", fontsize=9)
+        ax.set_rlim(0.97 * fab.values.min(), 1.02 * fab.values.max())
+    axes[1].legend(fontsize=7, loc="lower right")
+    save(fig, "fig38_fabric_distribution.png")
+
+    for number, stage, x in ((39, "biaxial", "eps_q"), (40, "rotation", "alpha_eps_deg")):
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for t in data:
+            f = data[t].get(f"{stage}_mil")
+            if f is not None:
+                xx = 100 * f[x] if x == "eps_q" else _unwrap(f[x])
+                ax.plot(xx, f["delta_deg"], label=f"{t} ({np.nanmean(f['delta_deg']):.1f}+-{np.nanstd(f['delta_deg']):.1f})")
+        ax.set(xlabel="eps_q [%]" if x == "eps_q" else "alpha_eps [deg]", ylabel="delta [deg] (MIL)",
+               title=f"Fig. {number}: delta during {stage}")
+        ax.legend(fontsize=7)
+        save(fig, f"fig{number}_delta_{stage}.png")
+
+    pairs = [p for p in (("T05", "T06"), ("T03", "T06"), ("T05", "T07")) if p[0] in data and p[1] in data]
+    if pairs:
+        fig, axes = plt.subplots(len(pairs), 1, figsize=(5, 3 * len(pairs)), squeeze=False)
+        for ax, pair in zip(axes[:, 0], pairs):
+            for t in pair:
+                f = data[t]["rotation_mil"]
+                ax.plot(_unwrap(f["alpha_eps_deg"]), f["delta_deg"], label=t)
+            ax.set(xlabel="alpha_eps [deg]", ylabel="delta [deg]")
+            ax.legend()
+        axes[0, 0].set_title("Fig. 41: influence of the contact parameters")
+        save(fig, "fig41_parameters.png")
+
+    fig, axes = plt.subplots(2, 1, figsize=(5, 6))
+    for ax, stage, x in ((axes[0], "biaxial", "eps_q"), (axes[1], "rotation", "alpha_eps_deg")):
+        for m in ("mil", "areal_porosity"):
+            f = data[main].get(f"{stage}_{m}")
+            if f is not None:
+                ax.plot(100 * f[x] if x == "eps_q" else _unwrap(f[x]), f["delta_deg"], label=m)
+        ax.set(xlabel="eps_q [%]" if x == "eps_q" else "alpha_eps [deg]", ylabel="delta [deg]")
+        ax.legend()
+    axes[0].set_title(f"Fig. 43 ({main}): MIL vs areal porosity")
+    save(fig, "fig43_mil_vs_n.png")
+
+    f = data[main]["rotation_mil"]
+    rows = f["row"].astype(int)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ae = _unwrap(r["alpha_eps_deg"])
+    ax.plot(ae, _unwrap(r["alpha_deps_deg"]), label="alpha_deps")
+    ax.plot(ae, _unwrap(r["alpha_sigma_deg"]), label="alpha_sigma")
+    ax.plot(ae[rows], _unwrap(f["alpha_eps_deg"] + f["delta_deg"]), "o-", label="alpha_Omega (MIL)")
+    ax.plot(ae, ae, "k--", lw=0.8, label="alpha_eps")
+    ax.set(xlabel="alpha_eps [deg]", ylabel="angle [deg]", title=f"Fig. 44 ({main})")
+    ax.legend(fontsize=8)
+    save(fig, "fig44_angles.png")
+    try:
+        written.append(glyph_figure(f, figdir / "fig42_glyphs.png"))
+    except Exception as exc:  # pyvista needs an off-screen renderer; the rest of the set is still useful
+        (figdir / "fig42_glyphs.txt").write_text(f"glyph figure not rendered: {exc}\n")
+    return written
+
+
+def superquadric_glyph(tensor, centre, scale: float, n: int = 120, gamma: float = 3.0):
+    """Outline (n, 2) of a 2D superquadric glyph (Schultz & Kindlmann 2010) of a symmetric 2x2
+    tensor with eigenvalues of either sign: radius |lambda_i|-scaled, concave (four-pointed) shape."""
+    w, v = np.linalg.eigh(np.asarray(tensor))
+    t = np.linspace(0, 2 * np.pi, n)
+    sx = np.sign(np.cos(t)) * np.abs(np.cos(t)) ** gamma
+    sy = np.sign(np.sin(t)) * np.abs(np.sin(t)) ** gamma
+    local = np.column_stack([abs(w[1]) * sx, abs(w[0]) * sy]) * scale
+    frame = np.column_stack([v[:, 1], v[:, 0]])
+    return np.asarray(centre) + local @ frame.T
+
+
+def glyph_figure(fabric_rows: dict, path, angles=(0, 15, 30, 45, 60, 90)) -> Path:
+    """Fig. 42: glyphs of n^Omega (scaled to 1) over n^e (scaled to 1/2) at several alpha_eps (pyvista)."""
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    ae = _unwrap(fabric_rows["alpha_eps_deg"])
+    plotter = pv.Plotter(off_screen=True, window_size=(1400, 300))
+    for k, a in enumerate(angles):
+        i = int(np.argmin(np.abs(ae - a)))
+        om = np.array([[fabric_rows["omega_xx"][i], fabric_rows["omega_xy"][i]],
+                       [fabric_rows["omega_xy"][i], -fabric_rows["omega_xx"][i]]])
+        ar = np.radians(ae[i])
+        ne = np.array([[np.cos(2 * ar), np.sin(2 * ar)], [np.sin(2 * ar), -np.cos(2 * ar)]]) / np.sqrt(2)
+        for tensor, scale, colour, z in ((om / np.linalg.norm(om), 1.0, "lightgray", 0.0), (ne, 0.5, "black", 0.01)):
+            xy = superquadric_glyph(tensor, (2.5 * k, 0.0), scale / np.abs(np.linalg.eigvalsh(tensor)).max())
+            pts = np.column_stack([xy, np.full(len(xy), z)])
+            poly = pv.PolyData(pts, faces=np.concatenate([[len(pts)], np.arange(len(pts))]))
+            plotter.add_mesh(poly, color=colour)
+        plotter.add_point_labels([[2.5 * k, -1.3, 0]], [f"alpha_eps = {a} deg"], font_size=12, shape=None,
+                                 show_points=False)
+    plotter.view_xy()
+    plotter.screenshot(str(path))
+    plotter.close()
+    return Path(path)
