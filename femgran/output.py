@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 import skfem
 
-__all__ = ["SeriesWriter", "L2Projector", "point_fields", "read_pvd", "write_parameters"]
+__all__ = ["SeriesWriter", "L2Projector", "point_fields", "read_pvd", "write_parameters", "plot_history", "plot_field"]
 
 
 class L2Projector:
