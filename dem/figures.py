@@ -36,7 +36,13 @@ def _load(out: Path, test: str):
 
 
 def _unwrap(a):
-    return np.degrees(np.unwrap(np.radians(2 * np.asarray(a)))) / 2
+    """Unwrap angles defined modulo 180 deg; NaN entries (undefined directions) stay NaN."""
+    a = np.asarray(a, float)
+    out = np.full_like(a, np.nan)
+    ok = np.isfinite(a)
+    if ok.any():
+        out[ok] = np.degrees(np.unwrap(np.radians(2 * a[ok]))) / 2
+    return out
 
 
 def sweep_figures(out, tests) -> list[Path]:
@@ -190,12 +196,16 @@ def superquadric_glyph(tensor, centre, scale: float, n: int = 120, gamma: float 
 
 
 def glyph_figure(fabric_rows: dict, path, angles=(0, 15, 30, 45, 60, 90)) -> Path:
-    """Fig. 42: glyphs of n^Omega (scaled to 1) over n^e (scaled to 1/2) at several alpha_eps (pyvista)."""
+    """Fig. 42: glyphs of n^Omega (grey, scaled to 1) over n^e (black, scaled to 1/2) at several alpha_eps.
+
+    Both tensors are traceless, so their superquadric glyphs are four-pointed stars with equal arms;
+    the axis of the positive eigenvalue is drawn as a line (red: n^Omega, blue: n^e)."""
     import pyvista as pv
 
     pv.OFF_SCREEN = True
     ae = _unwrap(fabric_rows["alpha_eps_deg"])
-    plotter = pv.Plotter(off_screen=True, window_size=(1400, 300))
+    plotter = pv.Plotter(off_screen=True, window_size=(1500, 330))
+    plotter.set_background("white")
     for k, a in enumerate(angles):
         i = int(np.argmin(np.abs(ae - a)))
         om = np.array([[fabric_rows["omega_xx"][i], fabric_rows["omega_xy"][i]],
@@ -207,9 +217,15 @@ def glyph_figure(fabric_rows: dict, path, angles=(0, 15, 30, 45, 60, 90)) -> Pat
             pts = np.column_stack([xy, np.full(len(xy), z)])
             poly = pv.PolyData(pts, faces=np.concatenate([[len(pts)], np.arange(len(pts))]))
             plotter.add_mesh(poly, color=colour)
-        plotter.add_point_labels([[2.5 * k, -1.3, 0]], [f"alpha_eps = {a} deg"], font_size=12, shape=None,
-                                 show_points=False)
+            w, v = np.linalg.eigh(tensor)  # mark the positive-eigenvalue axis (sign shown by colour)
+            axis = v[:, 1] * scale * 1.1
+            plotter.add_mesh(pv.Line((2.5 * k - axis[0], -axis[1], 0.02), (2.5 * k + axis[0], axis[1], 0.02)),
+                             color="tab:red" if colour == "lightgray" else "tab:blue", line_width=4)
+        plotter.add_point_labels([[2.5 * k - 0.8, -1.4, 0]], [f"({'abcdef'[k]}) {a} deg"], font_size=14, shape=None,
+                                 show_points=False, text_color="black")
     plotter.view_xy()
+    plotter.reset_camera()
+    plotter.camera.zoom(2.6)
     plotter.screenshot(str(path))
     plotter.close()
     return Path(path)
