@@ -486,11 +486,12 @@ def check_material(material) -> None:
         if not callable(getattr(material, m, None)):
             raise ValueError(f"material {type(material).__name__}: lacks the method {m}(); "
                              "allowed: objects with initial_state(n, stress=...) and update(d_strain, stress, state)")
-    st = material.initial_state(1)
+    n = int(getattr(material, "n_points", 1))  # laws tied to a point set (Composite) need all of them
+    st = material.initial_state(n)
     missing = [k for k in ("status", "step_ratio", "strain") if k not in st]
     if missing:
         raise ValueError(f"material {type(material).__name__}: state lacks {missing}")
-    s, st2, D = material.update(np.zeros((1, 3, 3)), np.zeros((1, 3, 3)), st)
-    if np.shape(s) != (1, 3, 3) or np.shape(D) != (1, 3, 3, 3, 3) or not np.all(np.isfinite(D)):
+    s, st2, D = material.update(np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), st)
+    if np.shape(s) != (n, 3, 3) or np.shape(D) != (n, 3, 3, 3, 3) or not np.all(np.isfinite(D)):
         raise ValueError(f"material {type(material).__name__}: update must return stress (N,3,3) and a finite "
                          f"tangent (N,3,3,3,3); got {np.shape(s)} and {np.shape(D)}")

@@ -131,7 +131,8 @@ def _triaxial(args):
         """peak_q_kPa"""
         return s.peak_q_kPa
 
-    fixed = _kw(args, p0_kPa=args.p0, platens=args.platens, axial_strain=args.axial_strain, resolution=args.resolution)
+    fixed = _kw(args, p0_kPa=args.p0, platens=args.platens, axial_strain=args.axial_strain, resolution=args.resolution,
+                friction=args.platen_friction)
     if args.mesh:
         fixed["mesh"] = args.mesh
     sols = _sweep(args, triaxial, False, "alpha", args.alpha, "alpha_deg", metric, fixed)
@@ -192,7 +193,8 @@ def register(subparsers) -> None:
                               description="Drained triaxial compression of the 50x50x100 mm specimen (femgran.cases.triaxial).")
     _common(p, "out/triaxial")
     p.add_argument("--p0", type=float, default=100.0, help="cell pressure [kPa]")
-    p.add_argument("--platens", choices=["rough", "smooth"], default="rough")
+    p.add_argument("--platens", choices=["rough", "smooth", "frictional"], default="rough")
+    p.add_argument("--platen-friction", type=float, default=0.3, help="platen friction coefficient (--platens frictional)")
     p.add_argument("--axial-strain", type=float, default=0.05)
     p.add_argument("--resolution", type=int, default=4, help="elements across the width")
     p.add_argument("--mesh", help="mesh file (meshio) filling [0,0.05]^2 x [0,0.1] m")

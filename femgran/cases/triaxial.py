@@ -11,7 +11,12 @@ interface:
 * ``"smooth"``: free slip, only u_z is prescribed on the platens (plus the two point constraints that
   remove the rigid-body motion in the x-y plane), so for alpha = 0 the specimen deforms homogeneously
   and reproduces the element test;
-* ``"frictional"`` (Coulomb friction coefficient): not implemented yet (raises ValueError).
+* ``"frictional"`` (friction coefficient ``friction``): a thin-layer interface. A layer of thickness
+  ``interface_thickness_m`` (default 1 mm) at each platen is made of a cohesionless Drucker-Prager
+  material with friction angle atan(friction), no dilation, the soil's elastic constants; its outer
+  face is bonded to the platen (as ``"rough"``), so the soil slides on the platen when the mobilised
+  shear/normal stress ratio of the layer reaches about the friction coefficient (Coulomb friction,
+  regularised by the layer's elasticity). Built-in mesh only.
 
 History columns: ``eps_a`` (compression +), ``q_kPa`` = -F_z / A0 - p0 (axial platen force over the
 initial area, minus the cell pressure), ``eps_v`` (volume change of the specimen from the mean point strain,
@@ -32,7 +37,7 @@ from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["triaxial", "PLATENS"]
 
-PLATENS = ("rough", "smooth")
+PLATENS = ("rough", "smooth", "frictional")
 WIDTH, HEIGHT = 0.05, 0.1
 
 
@@ -45,7 +50,8 @@ def _weighted_cv(values, weights):
 def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
              axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
              out=None, progress: bool = False, linear_solver: str = "auto", write_every: int = 1,
-             plots: bool = True, volumetric: str = "standard"):
+             plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
+             interface_thickness_m: float = 0.001):
     """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
 
     Parameters
@@ -53,7 +59,9 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
     p0_kPa : cell pressure [kPa], > 0.
     alpha_deg : deposition angle between z and e2 [deg].
-    platens : "rough" or "smooth" ("frictional" is not implemented).
+    platens : "rough", "smooth" or "frictional" (thin frictional layer, coefficient ``friction``).
+    friction : platen friction coefficient mu (``platens="frictional"``), > 0.
+    interface_thickness_m : thickness of the frictional layer [m].
     axial_strain : final axial strain, compression + [-]; steps : nominal number of load steps.
     mesh : None (structured hexahedra, ``resolution`` x ``resolution`` x 2 ``resolution``) or the path
         of a mesh file meshio reads (must fill the box [0, 0.05]^2 x [0, 0.1] m).
@@ -68,17 +76,31 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     from femgran.assembly import Discretisation
     from femgran.mesh import box, load_mesh
 
-    if platens == "frictional":
-        raise ValueError("platens = 'frictional': not implemented yet; allowed 'rough' or 'smooth'")
     if platens not in PLATENS:
         raise ValueError(f"platens = {platens!r}: allowed {PLATENS}")
     p0 = check_positive("p0_kPa", p0_kPa)
     ea = check_positive("axial_strain", axial_strain)
     n = int(resolution)
+    if platens == "frictional":
+        mu = check_positive("friction", friction)
+        ti = check_positive("interface_thickness_m", interface_thickness_m)
+        if mesh is not None:
+            raise ValueError("platens = 'frictional': only with the built-in mesh (mesh=None)")
+        if not ti < HEIGHT / (4 * max(n, 1)):
+            raise ValueError(f"interface_thickness_m = {ti}: must be < a quarter of the element height "
+                             f"{HEIGHT / (2 * max(n, 1))} m")
     if mesh is None:
         if n < 1:
             raise ValueError(f"resolution = {resolution!r}: must be >= 1")
-        m = box(WIDTH, WIDTH, HEIGHT, n, n, 2 * n)
+        if platens == "frictional":
+            import skfem
+            from femgran.mesh import name_box_boundaries
+
+            z = np.concatenate([[0.0], np.linspace(ti, HEIGHT - ti, 2 * n + 1), [HEIGHT]])
+            xs = np.linspace(0.0, WIDTH, n + 1)
+            m = name_box_boundaries(skfem.MeshHex.init_tensor(xs, xs, z))
+        else:
+            m = box(WIDTH, WIDTH, HEIGHT, n, n, 2 * n)
     else:
         m = load_mesh(mesh)
         lo, hi = m.p.min(axis=1), m.p.max(axis=1)
@@ -87,11 +109,13 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
                              f"got bounds {lo} .. {hi}")
     mat = make_material(material, alpha_deg, plane_strain=False)
     d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshHex1" else "standard")
+    if platens == "frictional":
+        mat = _with_interface_layers(mat, d, mu, ti)
     b = m.boundaries
     bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
     bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),
            Dirichlet(d.vector_dofs(top, [2]), -ea * HEIGHT, name="top")]
-    if platens == "rough":
+    if platens in ("rough", "frictional"):
         bcs += [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0), Dirichlet(d.vector_dofs(top, [0, 1]), 0.0)]
     else:
         bcs += [Dirichlet(d.vector_dofs(nodes_near(d, (0, 0, 0)), [0, 1]), 0.0),
@@ -122,6 +146,8 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
               "axial_strain": ea, "steps": int(steps), "mesh": str(mesh) if mesh else f"box {n}x{n}x{2 * n} hex",
               "order": int(order), "linear_solver": linear_solver, "material": material_record(mat),
+              "friction": float(friction) if platens == "frictional" else None,
+              "interface_thickness_m": float(interface_thickness_m) if platens == "frictional" else None,
               "ndofs": d.ndofs}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
@@ -133,6 +159,23 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     if out_dir is not None and plots:
         _plots(sol, out_dir)
     return sol
+
+
+def _with_interface_layers(mat, d, mu, ti):
+    """Composite material: a frictional Drucker-Prager layer in the elements touching the platens."""
+    from material import DruckerPrager
+
+    from femgran.composite import Composite
+
+    E = getattr(mat, "E", None) or getattr(getattr(mat, "params", None), "E", None)
+    nu = getattr(mat, "nu", None) or getattr(getattr(mat, "params", None), "nu", None)
+    if E is None or nu is None:
+        raise ValueError("platens = 'frictional': the soil material must expose E and nu (or params.E, params.nu)")
+    layer = DruckerPrager(E, nu, 0.0, float(np.degrees(np.arctan(mu))), 0.0, match="plane_strain")
+    zc = np.asarray(d.quadrature_points())[:, 2].reshape(d.nelems, d.nqp).mean(axis=1)
+    in_layer = (zc < ti) | (zc > HEIGHT - ti)
+    assignment = np.repeat(in_layer.astype(np.int64), d.nqp)
+    return Composite([mat, layer], assignment)
 
 
 def _plots(sol, out_dir: Path) -> None:

@@ -167,8 +167,8 @@ def test_bad_mesh_files(tmp_path):
 
 
 def test_bad_case_arguments():
-    with pytest.raises(ValueError, match="frictional.*not implemented"):
-        triaxial(None, platens="frictional")
+    with pytest.raises(ValueError, match="only with the built-in mesh"):
+        triaxial(None, platens="frictional", mesh="meshes/triaxial_hex_4.vtu")
     with pytest.raises(ValueError, match="platens = 'glued'"):
         triaxial(None, platens="glued")
     with pytest.raises(ValueError, match="p0_kPa"):

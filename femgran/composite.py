@@ -1,0 +1,98 @@
+"""Different material laws on different sets of quadrature points, behind the one-material interface.
+
+:class:`Composite` is itself a material (``initial_state`` / ``update``), so the solver is unchanged.
+Each law keeps its own state, stored at full size N under prefixed keys (``"<k>:<key>"``, k the index of
+the law) and updated only on its own points; the shared keys every law has (``"strain"``, ``"status"``,
+``"step_ratio"``, and ``"plastic_strain"`` / ``"mobilised_ratio"`` / ``"kappa"`` where present in the
+first law) are merged at full size for the solver and the output.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from material.base import STATUS_OK, as_stress_batch, check_batch
+
+__all__ = ["Composite"]
+
+_SHARED = ("strain", "status", "step_ratio")
+
+
+class Composite:
+    """``laws[k]`` acts on the points where ``assignment == k``.
+
+    Parameters
+    ----------
+    laws : sequence of material objects
+    assignment : (N,) int array, the law index of every point (element-major point numbering,
+        see :mod:`femgran.state`).
+    """
+
+    def __init__(self, laws, assignment):
+        self.laws = list(laws)
+        a = np.asarray(assignment)
+        if a.ndim != 1 or not np.issubdtype(a.dtype, np.integer):
+            raise ValueError(f"assignment: expected a 1D integer array, got {a.dtype} {a.shape}")
+        if a.size and (a.min() < 0 or a.max() >= len(self.laws)):
+            raise ValueError(f"assignment: law indices must be in 0..{len(self.laws) - 1}")
+        self.assignment = a
+        self.index = [np.flatnonzero(a == k) for k in range(len(self.laws))]
+        self.axes = getattr(self.laws[0], "axes", None)
+        self.n_points = a.size
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{law!r} on {idx.size} points" for law, idx in zip(self.laws, self.index))
+        return f"Composite({parts})"
+
+    def _n(self, n):
+        if int(n) != self.assignment.size:
+            raise ValueError(f"Composite: {n} points, but the assignment has {self.assignment.size}")
+        return int(n)
+
+    def initial_state(self, n_points: int, stress=None):
+        n = self._n(n_points)
+        sig = as_stress_batch(stress, n)
+        state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
+        for k, (law, idx) in enumerate(zip(self.laws, self.index)):
+            sub = law.initial_state(idx.size, stress=sig[idx])
+            for key, arr in sub.items():
+                full = np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
+                full[idx] = arr
+                state[f"{k}:{key}"] = full
+        self._merge(state)
+        return state
+
+    def _merge(self, state):
+        n = self.assignment.size
+        for key in ("plastic_strain", "mobilised_ratio", "eq_plastic_strain"):
+            if any(f"{k}:{key}" in state for k in range(len(self.laws))):
+                shape = next(state[f"{k}:{key}"].shape for k in range(len(self.laws)) if f"{k}:{key}" in state)
+                full = np.zeros(shape)
+                for k, idx in enumerate(self.index):
+                    if f"{k}:{key}" in state:
+                        full[idx] = state[f"{k}:{key}"][idx]
+                state[key] = full
+        for key in _SHARED:
+            for k, idx in enumerate(self.index):
+                if f"{k}:{key}" in state:
+                    state[key][idx] = state[f"{k}:{key}"][idx]
+        return state
+
+    def update(self, d_strain, stress, state):
+        de, s = check_batch(d_strain, stress)
+        n = self._n(de.shape[0])
+        new_stress = np.empty_like(s)
+        tangent = np.empty((n, 3, 3, 3, 3))
+        new = {"strain": state["strain"] + de, "status": np.full(n, STATUS_OK, np.int8), "step_ratio": np.ones(n)}
+        for k, (law, idx) in enumerate(zip(self.laws, self.index)):
+            prefix = f"{k}:"
+            sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
+            s_k, st_k, D_k = law.update(de[idx], s[idx], sub)
+            new_stress[idx] = s_k
+            tangent[idx] = D_k
+            for key, arr in st_k.items():
+                full = np.array(state[prefix + key], copy=True) if prefix + key in state else \
+                    np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
+                full[idx] = arr
+                new[prefix + key] = full
+        return new_stress, self._merge(new), tangent
