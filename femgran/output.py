@@ -241,21 +241,25 @@ def plot_history(history, x: str, y: str, path, *, xlabel=None, ylabel=None, tit
     return Path(path)
 
 
-def plot_field(vtu_path, field: str, path, *, component: int | None = None, warp: float = 0.0) -> Path | None:
-    """PNG of a field of a .vtu, rendered off screen with pyvista (None if rendering is unavailable)."""
+def plot_field(vtu_path, field: str, path, *, component: int | str | None = None, warp: float = 0.0) -> Path | None:
+    """PNG of a nodal field of a .vtu, rendered off screen with pyvista (None if rendering is unavailable).
+
+    ``component``: an index of a multi-component field, or ``"norm"`` (Euclidean norm of the components).
+    """
     try:
         import pyvista as pv
 
         pv.OFF_SCREEN = True
         grid = pv.read(str(vtu_path))
         name = field
+        values = np.asarray(grid.point_data[field])
         if component is not None:
             name = f"{field}_{component}"
-            grid[name] = np.asarray(grid[field])[:, component]
+            grid.point_data[name] = np.linalg.norm(values, axis=1) if component == "norm" else values[:, component]
         if warp:
             grid = grid.warp_by_vector("displacement", factor=warp)
         pl = pv.Plotter(off_screen=True, window_size=(800, 600))
-        pl.add_mesh(grid, scalars=name, show_edges=False, cmap="viridis")
+        pl.add_mesh(grid, scalars=name, preference="point", show_edges=False, cmap="viridis")
         if grid.bounds[5] - grid.bounds[4] == 0:
             pl.view_xy()
         else:

@@ -160,7 +160,6 @@ def _plots(sol, out_dir: Path) -> None:
     if entries:
         field = "eq_plastic_strain" if "eq_plastic_strain" in sol.state else "q_kPa"
         if "plastic_strain" in sol.state:
-            field = "plastic_strain"
-            plot_field(entries[-1][1], field, out_dir / "mechanism_plastic_shear.png", component=1)
+            plot_field(entries[-1][1], "plastic_strain", out_dir / "mechanism_plastic_strain.png", component="norm")
         else:
             plot_field(entries[-1][1], field, out_dir / "mechanism.png")
