@@ -36,7 +36,9 @@ __all__ = ["biaxial", "band_angle"]
 def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) -> tuple[float, bool]:
     """Inclination of a band from the x axis [deg, 0..90] and whether the weights are localised.
 
-    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment times the point volume).
+    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment). ``localised``: the weights
+    are concentrated (max > 3 x median) in less than 30 % of the points forming an elongated cloud
+    (principal variance ratio > 10); otherwise the angle means nothing.
     """
     w = np.asarray(weights, float)
     if not np.any(w > 0):
@@ -48,7 +50,10 @@ def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) 
     vals, vecs = np.linalg.eigh(C)
     v = vecs[:, -1]
     angle = np.degrees(np.arctan2(abs(v[1]), abs(v[0])))
-    localised = bool(np.max(w) > 3 * np.median(w[w > 0])) if np.any(w > 0) else False
+    # a band: concentrated (max > 3 x median), a small part of the points, and an elongated cloud
+    concentrated = bool(np.max(w) > 3 * np.median(w[w > 0]))
+    elongated = bool(vals[-1] > 10 * max(vals[0], 1e-300))
+    localised = concentrated and elongated and sel.mean() < 0.3
     return float(angle), localised
 
 
