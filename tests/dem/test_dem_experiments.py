@@ -23,14 +23,19 @@ def test_biaxial_holds_lateral_stress_and_is_quasi_static(biaxial_run):
     np.testing.assert_allclose(run["contact_sigma_yy_kPa"], run["sigma_yy_kPa"], rtol=0.05)
 
 
-def test_fabric_stays_coaxial_with_strain_in_biaxial(biaxial_run):
-    """|delta| (MIL fabric vs strain deviator) small during axial compression (Fig. 39)."""
-    deltas = []
-    for k in range(2, len(biaxial_run.snapshots)):
-        state = biaxial_run.snapshot_state(k)
-        omega = dem.fabric(state, measure="mil", grid_spacing_m=1e-5).omega
-        deltas.append(delta_deg(omega, state.boundary_strain))
-    assert np.median(np.abs(deltas)) < 8.0
+def test_fabric_stays_coaxial_with_strain_in_biaxial():
+    """|delta| (MIL fabric and contact normals vs strain deviator) small in axial compression (Fig. 39).
+
+    1000 disks: with 300 the MIL tensor of the circular domain is dominated by sampling noise."""
+    iso = dem.isotropic_compression(dem.generate(1000, seed=1))
+    run = dem.biaxial(iso, axial_strain=0.03, n_records=12)
+    mil, contact = [], []
+    for k in range(2, len(run.snapshots)):
+        state = run.snapshot_state(k)
+        mil.append(delta_deg(dem.fabric(state, measure="mil", grid_spacing_m=1e-5).omega, state.boundary_strain))
+        contact.append(delta_deg(dem.contact_fabric(state), state.boundary_strain))
+    assert np.median(np.abs(mil)) < 6.0  # thesis: |delta| about 4-5 deg (Fig. 39)
+    assert np.median(np.abs(contact)) < 3.0
 
 
 def test_rotation_keeps_invariants_and_stress_is_not_coaxial(rotation_run, biaxial_run):
