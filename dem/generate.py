@@ -133,7 +133,11 @@ def generate(n_particles: int = 4000, psd="ottawa_c109", width_m: float | None =
     total = 1.0 - placement_factor
     n_steps = int(np.ceil(total / placement_factor / expansion_rate / sim.dt))
     batches = max(20, n_steps // 200)
-    for k in range(1, batches + 1):
+    steps_iter = range(1, batches + 1)
+    if progress:
+        from tqdm import tqdm
+        steps_iter = tqdm(steps_iter, desc="radius expansion", unit="batch")
+    for k in steps_iter:
         sim.set_radii(radii * (placement_factor + total * k / batches))
         sim.advance(max(1, n_steps // batches))
     # frictionless servo compression to a low pressure: the dense isostatic state
