@@ -143,7 +143,8 @@ def generate(n_particles: int = 4000, psd="ottawa_c109", width_m: float | None =
     # frictionless servo compression to a low pressure: the dense isostatic state
     _servo_to(sim, -jamming_kPa, max_rate=expansion_rate / 4, progress=progress, unbalanced_max=0.02)
     state.law = law.replace(friction=0.0)
-    state.meta.update(stage="generated", jamming_kPa=jamming_kPa, box_porosity=box_porosity)
+    state.meta.update(stage="generated", jamming_kPa=jamming_kPa, box_porosity=box_porosity,
+                      friction=law.friction)  # the friction of the experiments, used by isotropic_compression
     state.velocities[:] = 0.0
     state.angular_velocities[:] = 0.0
     return state
@@ -177,14 +178,14 @@ def isotropic_compression(sample: DEMState, p_kPa: float = 100.0, law: ContactLa
                           progress: bool = False) -> DEMState:
     """Servo-controlled isotropic compression to ``p_kPa`` (compression positive) with friction on.
 
-    ``law`` (default: the sample's law with ``friction`` if given, else tan 30 deg) is the contact
-    law of the experiments. Returns a new state (the input is not modified), meta stage "isotropic".
+    ``law`` (default: the sample's law with ``friction`` if given, else the friction of the law given
+    to :func:`generate`, else tan 30 deg) is the contact law of the experiments. Returns a new state (the input is not modified), meta stage "isotropic".
     """
     if not (np.isfinite(p_kPa) and p_kPa > 0):
         raise ValueError(f"p_kPa={p_kPa!r}: must be a positive pressure (compression positive)")
     state = sample.copy()
     if law is None:
-        mu = np.tan(np.radians(30.0)) if friction is None else friction
+        mu = friction if friction is not None else state.meta.get("friction", np.tan(np.radians(30.0)))
         law = state.law.replace(friction=float(mu))
     state.law = law
     sim = Simulation(state)
