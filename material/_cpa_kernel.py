@@ -186,19 +186,26 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
               comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm):
     """Residuals and the condensed Newton system at the iterate (sig, kap).
 
-    Unknowns: the stress and the slip kappa_a of every loading plane. Residuals: the strain residual
+    Two kinds of loading planes. A weakly mobilised plane (kappa_n <= A, i.e. eta(kappa_n) <= zeta
+    eta_f / 2) takes its slip from the inverted hardening law, kappa_a = A etah_a / (zeta eta_f - etah_a):
+    smooth where the shear traction vanishes (the slip vector dkappa s is then ~ t_s), which matters for
+    tiny increments from states with unsheared planes; it must stay inside the barrier etah < zeta
+    eta_f. A strongly mobilised plane (kappa_n > A) keeps kappa_a as an unknown with the hardening law
+    as its equation, so nothing is singular as it approaches failure:
+
+    Unknowns: the stress and the slip kappa_a of every such plane. Residuals: the strain residual
     ``r = S (sigma - sigma_n) + (1/t) sum_a w_a (kappa_a - kappa_n,a) m_a - d_eps`` with
     ``m_a = sym((s_a - dil_a n_a) (x) n_a)`` (2.7, 2.9), and on each loading plane the hardening law
     (2.16) ``g_a = etah_a(sigma) - zeta eta_f kappa_a / (A + kappa_a) = 0``. Linearising g_a gives
     ``d kappa_a = (g_a + b_a . d sigma) / eta'_a`` (b_a = d etah_a / d sigma), which condenses the system
     to ``J d sigma = rhs`` with ``J = S + sum_a (w_a/t) [dkappa_a dm_a/dsigma + m_a (x) b_a / eta'_a]``
-    and ``rhs = -r - sum_a (w_a/t) m_a g_a / eta'_a``. At a solution J is the Jacobian of the
-    stress-only residual, so its inverse is the consistent tangent. Unlike the stress-only form, nothing
-    here is singular as etah approaches zeta eta_f: kappa is an unknown, not kappa(etah).
+    and ``rhs = -r - sum_a (w_a/t) m_a g_a / eta'_a`` (for an explicit plane g = 0 and 1/eta' is
+    d kappa / d etah, the same terms). At a solution J is the Jacobian of the stress-only residual, so
+    its inverse is the consistent tangent.
 
-    ``update_active`` 1: an elastic plane whose etah exceeds eta(kappa_n) starts loading (kappa from
-    kappa_n), a loading plane whose kappa fell below kappa_n unloads; 2: only report (``changed``)
-    whether such a switch is due; 0: the active set is frozen. Returns (admissible, merit,
+    ``update_active`` (strongly mobilised planes; explicit planes switch by themselves) 1: an elastic
+    plane whose etah exceeds eta(kappa_n) starts loading (kappa from kappa_n), a loading plane whose kappa
+    fell below kappa_n unloads; 2: only report (``changed``) whether such a switch is due; 0: frozen. Returns (admissible, merit,
     changed, |r|, max |g|); merit = |r|^2 / |d_eps|^2 + sum g^2. ``work[a]`` receives sigma_N, tau, etah,
     q, dil, 1/eta', g; ``bvec[a]`` receives b_a.
     """
@@ -217,10 +224,6 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
     for i in range(6):
         smax = max(smax, abs(sig[i]))
     tau_tiny = 1e-13 * (smax + 1e-300)
-    sn6 = tmp[0]
-    mn6 = tmp[1]
-    v1 = tmp[2]
-    v2 = tmp[3]
     merit_g = 0.0
     gmax = 0.0
     changed = False
@@ -236,85 +239,143 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
         zef = zeta * ef
         kn = kap_n[a]
         if sigma_N <= 0.0 or tau <= tau_tiny:
-            if active[a]:
+            if active[a] and kn > A:
                 if update_active != 1:
                     return False, np.inf, changed, np.inf, np.inf
-                active[a] = False  # a loading plane that lost its compression or its shear unloads
-                kap[a] = kn
-                changed = True
+                changed = True  # a loading plane that lost its compression or its shear unloads
+            active[a] = False
+            kap[a] = kn
             if sigma_N <= 0.0 and (tau > c + tau_tiny or sigma_N < -c / ef - tau_tiny):
                 # tension side: no normal tension beyond the apex sigma0 = c / eta_f, and no shear above
                 # the cohesion on a plane that is not compressed (MODEL.md, tension cut-off)
                 return False, np.inf, changed, np.inf, np.inf
             continue
         etah = (tau - c) / sigma_N  # mobilised ratio
-        if update_active != 0:
-            if active[a]:
-                if kap[a] < kn:
-                    changed = True
-                    if update_active == 1:
-                        active[a] = False
-                        kap[a] = kn
-            elif etah > zef * kn / (A + kn):  # loading beyond the level reached so far (2.16)
+        if kn <= A:
+            # weakly mobilised plane (eta(kappa_n) <= zeta eta_f / 2): explicit inverse law, kappa(etah),
+            # smooth even where tau -> 0 (dkappa s ~ t_s), admissible only inside the barrier
+            if etah >= zef * (1.0 - 1e-9):
+                return False, np.inf, changed, np.inf, np.inf
+            if tau <= tau_tiny or etah < zef * kn / (A + kn):
+                active[a] = False
+                kap[a] = kn
+                continue
+            active[a] = True
+            kap[a] = A * etah / (zef - etah)
+            dk = kap[a] - kn
+            if dk < 0.0:
+                dk = 0.0
+            kprime = A * zef / ((zef - etah) * (zef - etah))  # d kappa / d etah
+            g = 0.0
+        else:
+            dk, kprime, g = _implicit_plane(a, update_active, active, kap, kn, etah, zef, A)
+            if dk == _INADMISSIBLE:
+                return False, np.inf, changed, np.inf, np.inf
+            if dk == _SWITCHED:
                 changed = True
-                if update_active == 1:
-                    active[a] = True
-                    kap[a] = kn
-        if not active[a]:
-            continue
-        k = kap[a]
-        if k <= -0.5 * A:
-            # an iterate may take kappa below kappa_n (the plane is about to unload; the next active-set
-            # update switches it off) but must keep A + kappa > 0 for the hardening curve to make sense
-            return False, np.inf, changed, np.inf, np.inf
-        dk = k - kn
-        apk = A + k
-        g = etah - zef * k / apk  # hardening law (2.16) residual
-        kprime = apk * apk / (zef * A)  # 1 / eta'(kappa)
-        s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
-        sig0 = c / ef
-        q = tau / (sigma_N + sig0)
-        dil = eta_c_ratio * ef - q  # d psi / d sigma_N (2.17): > 0 compaction, < 0 dilation
-        work[a, 0] = sigma_N
-        work[a, 1] = tau
-        work[a, 2] = etah
-        work[a, 3] = q
-        work[a, 4] = dil
-        work[a, 5] = kprime
-        work[a, 6] = g
+                continue
+            if dk == _SWITCH_DUE:
+                changed = True
+            if not active[a]:
+                continue
+            dk = kap[a] - kn
+        _plane_terms(a, dk, kprime, g, sigma_N, tau, etah, ts0, ts1, ts2, c, ef, n0, n1, n2, nn6, weights, inv_t,
+                     eta_c_ratio, want_jac, r, J, rhs, work, bvec, tmp)
         merit_g += g * g
         gmax = max(gmax, abs(g))
-        wt = weights[a] * inv_t
-        _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
-        for i in range(6):
-            r[i] += wt * dk * (sn6[i] - dil * nn6[a, i])  # (2.7, 2.9)
-        if want_jac:
-            m0 = n1 * s2 - n2 * s1
-            m1 = n2 * s0 - n0 * s2
-            m2 = n0 * s1 - n1 * s0
-            _sym_mandel(mn6, m0, m1, m2, n0, n1, n2)
-            inv_sn = 1.0 / sigma_N
-            for j in range(6):
-                v1[j] = sn6[j] + etah * nn6[a, j]  # sigma_N d etah / d sigma
-                v2[j] = sn6[j] + q * nn6[a, j]     # (sigma_N + sigma0) dq / d sigma
-                bvec[a, j] = v1[j] * inv_sn
-            cg = wt * kprime * inv_sn
-            ch = wt * dk / (sigma_N + sig0)
-            cm = wt * dk / tau
-            for i in range(6):
-                mi_ = sn6[i] - dil * nn6[a, i]
-                rhs[i] += wt * mi_ * g * kprime
-                gi = cg * mi_
-                hi = ch * nn6[a, i]
-                mi = cm * mn6[i]
-                for j in range(6):
-                    J[i, j] += gi * v1[j] + hi * v2[j] + mi * mn6[j]
     rn = 0.0
     for i in range(6):
         rn += r[i] * r[i]
         rhs[i] = -r[i] - rhs[i]
     merit = rn / (de_norm * de_norm + 1e-300) + merit_g
     return True, merit, changed, np.sqrt(rn), gmax
+
+
+_INADMISSIBLE = -1e300
+_SWITCHED = -2e300
+_SWITCH_DUE = -3e300
+
+
+@njit(cache=True)
+def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
+    """Active-set logic and hardening residual of a strongly mobilised plane (kappa an unknown).
+
+    Returns (code or 0, 1/eta'(kappa), g); the code is _SWITCHED when the plane was switched on or off
+    here (mode 1; a plane switched on starts at kappa_n), _SWITCH_DUE when a switch is due (mode 2),
+    _INADMISSIBLE when kappa left the range A + kappa > 0.
+    """
+    code = 0.0
+    if update_active != 0:
+        if active[a]:
+            if kap[a] < kn:
+                if update_active == 1:
+                    active[a] = False
+                    kap[a] = kn
+                    return _SWITCHED, 0.0, 0.0
+                code = _SWITCH_DUE
+        elif etah > zef * kn / (A + kn):  # loading beyond the level reached so far (2.16)
+            if update_active == 1:
+                active[a] = True
+                kap[a] = kn
+            else:
+                return _SWITCH_DUE, 0.0, 0.0
+            code = _SWITCH_DUE
+    if not active[a]:
+        return code, 0.0, 0.0
+    k = kap[a]
+    if k <= -0.5 * A:
+        # an iterate may take kappa below kappa_n (the plane is about to unload; the next active-set
+        # update switches it off) but must keep A + kappa > 0 for the hardening curve to make sense
+        return _INADMISSIBLE, 0.0, 0.0
+    apk = A + k
+    g = etah - zef * k / apk  # hardening law (2.16) residual
+    return code, apk * apk / (zef * A), g
+
+
+@njit(cache=True)
+def _plane_terms(a, dk, kprime, g, sigma_N, tau, etah, ts0, ts1, ts2, c, ef, n0, n1, n2, nn6, weights, inv_t,
+                 eta_c_ratio, want_jac, r, J, rhs, work, bvec, tmp):
+    """Add a loading plane's flow (2.7, 2.9) to the residual and its terms to the condensed system."""
+    sn6 = tmp[0]
+    mn6 = tmp[1]
+    v1 = tmp[2]
+    v2 = tmp[3]
+    s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
+    sig0 = c / ef
+    q = tau / (sigma_N + sig0)
+    dil = eta_c_ratio * ef - q  # d psi / d sigma_N (2.17): > 0 compaction, < 0 dilation
+    work[a, 0] = sigma_N
+    work[a, 1] = tau
+    work[a, 2] = etah
+    work[a, 3] = q
+    work[a, 4] = dil
+    work[a, 5] = kprime
+    work[a, 6] = g
+    wt = weights[a] * inv_t
+    _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
+    for i in range(6):
+        r[i] += wt * dk * (sn6[i] - dil * nn6[a, i])
+    if want_jac:
+        m0 = n1 * s2 - n2 * s1
+        m1 = n2 * s0 - n0 * s2
+        m2 = n0 * s1 - n1 * s0
+        _sym_mandel(mn6, m0, m1, m2, n0, n1, n2)
+        inv_sn = 1.0 / sigma_N
+        for j in range(6):
+            v1[j] = sn6[j] + etah * nn6[a, j]  # sigma_N d etah / d sigma
+            v2[j] = sn6[j] + q * nn6[a, j]     # (sigma_N + sigma0) dq / d sigma
+            bvec[a, j] = v1[j] * inv_sn
+        cg = wt * kprime * inv_sn
+        ch = wt * dk / (sigma_N + sig0)
+        cm = wt * dk / tau
+        for i in range(6):
+            mi_ = sn6[i] - dil * nn6[a, i]
+            rhs[i] += wt * mi_ * g * kprime
+            gi = cg * mi_
+            hi = ch * nn6[a, i]
+            mi = cm * mn6[i]
+            for j in range(6):
+                J[i, j] += gi * v1[j] + hi * v2[j] + mi * mn6[j]
 
 
 @njit(cache=True)
@@ -394,10 +455,19 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r, J, rhs, work,
                                              bvec, tmp, de_norm)
     dsig = tmp[4]
+    # round-off floor of |r|: S (sigma - sigma_n) is computed from stresses of size |sigma|, so |r| cannot
+    # go below ~1e-16 |S| |sigma|; a tiny increment would otherwise ask for less than round-off
+    smax = 0.0
+    for i in range(6):
+        smax = max(smax, abs(sig_n[i]), abs(sig[i]))
+    cmax = 0.0
+    for i in range(6):
+        cmax = max(cmax, abs(comp[i, i]))
+    r_floor = 1e-13 * smax * cmax
     for it in range(maxit + 1):
         if not ok:
             return False, it
-        if not changed and rn <= tol * (de_norm + 1e-300) and gmax <= tol_g:
+        if not changed and rn <= tol * de_norm + r_floor and gmax <= tol_g:
             return _lu_factor(J, piv), it
         if it == maxit or not _lu_factor(J, piv):
             return False, it
@@ -507,7 +577,10 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, False, active, r, J, delta,
                                              work, bvec, tmp, de_norm)
-    if ok and not changed:
+    any_active = False
+    for a in range(M):
+        any_active = any_active or active[a]
+    if ok and not any_active:
         for i in range(6):
             for j in range(6):
                 J[i, j] = comp[i, j]
