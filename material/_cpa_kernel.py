@@ -658,9 +658,8 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     B = mats[1]
     Dsig = mats[2]
     total_it = 0
-    # tension cut-off (MODEL.md "Tension"): when the elastic trial stress has no compression left
-    # (mean stress >= 0) no stress state of the cone can follow the increment: the point goes to the
-    # apex (stress free), the whole misfit becomes plastic opening, kappa is unchanged.
+    # tension cut-off (MODEL.md "Tension"), first case: when the elastic trial stress has no compression
+    # left (mean stress >= 0) no stress state of the cone can follow the increment
     p_trial = 0.0
     for i in range(3):
         acc = sig_n[i]
@@ -668,15 +667,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             acc += stiff[i, j] * de[j]
         p_trial += acc / 3.0
     if p_trial >= 0.0:
-        for i in range(6):
-            sig_out[i] = 0.0
-        for a in range(M):
-            kap_out[a] = kap_n[a]
-        if want_tangent:
-            rho = fopt[_F_CUTOFF_STIFFNESS]
-            for i in range(6):
-                for j in range(6):
-                    D_out[i, j] = rho * stiff[i, j]
+        _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1, 0, True
     for level in range(max_level + 1):
         m = 1 << level
@@ -809,6 +800,18 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     for j in range(6):
                         D_out[i, j] = Dsig[i, j]
             return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
+    # second case: no sub-step sequence converged and the trial stress pulls some plane apart (the
+    # increment opens the material faster than plastic dilation can follow, so the path runs into the
+    # apex of the cone, as sub-stepping shows): the point goes to the apex
+    for i in range(6):
+        trial[i] = sig_n[i]
+        for j in range(6):
+            trial[i] += stiff[i, j] * de[j]
+    for a in range(M):
+        t0, t1, t2 = _traction(trial, normals[a, 0], normals[a, 1], normals[a, 2])
+        if t0 * normals[a, 0] + t1 * normals[a, 1] + t2 * normals[a, 2] > 0.0:
+            _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
+            return _OK, 1 << max_level, total_it, True
     for i in range(6):
         sig_out[i] = sig_n[i]
     for a in range(M):
@@ -818,6 +821,19 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             for j in range(6):
                 D_out[i, j] = stiff[i, j]
     return _FAILED, 1 << max_level, total_it, False
+
+
+@njit(cache=True)
+def _apex(sig_out, kap_out, D_out, kap_n, stiff, rho, want_tangent):
+    """Tension cut-off: stress free, kappa unchanged, tangent rho * elastic (MODEL.md "Tension")."""
+    for i in range(6):
+        sig_out[i] = 0.0
+    for a in range(kap_n.shape[0]):
+        kap_out[a] = kap_n[a]
+    if want_tangent:
+        for i in range(6):
+            for j in range(6):
+                D_out[i, j] = rho * stiff[i, j]
 
 
 @njit(cache=True, parallel=True)
