@@ -150,7 +150,9 @@ class _Recorder:
 
 def _drive(state: DEMState, segments: list, record_every: int, out, checkpoint_every: int, resume,
            progress: bool, snapshot_every: int, label: str, meta: dict) -> Run:
-    """Run the segments; each is (n_steps, rate (2,2) 1/s, servo_xx_kPa or None, alpha_target_deg)."""
+    """Run the segments; each is (n_steps, rate (2,2) 1/s, servo_xx_kPa or None, alpha_target_deg), or
+    for a strain increment whose duration follows the pressure (n_steps None, dE (2,2), None, alpha,
+    estimated steps, (inertial number, max rate)). ``record_every`` None: one record per segment."""
     out = Path(out) if out is not None else None
     ckpt = out / "checkpoint.npz" if out is not None else None
     first_segment, first_step = 0, 0
@@ -179,40 +181,46 @@ def _drive(state: DEMState, segments: list, record_every: int, out, checkpoint_e
     if rows_before:
         r = rows_before[-1]
         rec.last_eps = np.array([[r["eps_xx"], r["eps_xy"]], [r["eps_xy"], r["eps_yy"]]])
-    total = sum(s[0] for s in segments)
-    done = sum(s[0] for s in segments[:first_segment]) + first_step
+    estimate = [s[0] if s[0] is not None else s[4] for s in segments]
+    total = sum(estimate)
+    done = sum(estimate[:first_segment]) + first_step
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=total, initial=done, desc=label, unit="step", smoothing=0.1)
     since_ckpt = 0
     if not resume:
-        n0, rate0, servo0, alpha0 = segments[0]
-        rec.record(sim, alpha0, float(np.abs(rate0).max()))
+        rec.record(sim, segments[0][3], _rate_norm(segments[0]))
     try:
         for k in range(first_segment, len(segments)):
-            n_steps, rate, servo_xx, alpha = segments[k]
+            n_steps, rate, servo_xx, alpha = segments[k][:4]
+            if resume and k == first_segment:
+                n_steps = state.meta["checkpoint"]["n_steps"]
+                rate = np.asarray(state.meta["checkpoint"]["segment_rate"])
+            elif n_steps is None:  # an increment: its duration follows the current pressure (I const)
+                n_steps, rate = _adaptive_increment(sim, rate, segments[k][5])
             state.boundary_rate[:] = rate
             sim.set_servo((servo_xx, None) if servo_xx is not None else (None, None),
                           max_rate=max(2.0 * float(np.abs(rate).max()), 1e-6))
             if resume and k == first_segment:
                 state.boundary_rate[:] = np.asarray(state.meta["checkpoint"]["rate"])
             step = first_step if k == first_segment else 0
+            every = record_every or n_steps
             while step < n_steps:
-                todo = min(record_every - (step % record_every), n_steps - step)
+                todo = min(every - (step % every), n_steps - step)
                 sim.advance(todo, checkpoint=ckpt if (ckpt and ckpt.is_file()) else None)
                 step += todo
                 since_ckpt += todo
                 if bar is not None:
                     bar.update(todo)
-                if step % record_every == 0 or step == n_steps:
+                if step % every == 0 or step == n_steps:
                     row = rec.record(sim, alpha, float(np.abs(rate).max()))
                     if bar is not None:
                         bar.set_postfix(eps_a=f"{row['eps_a']:.4f}", ratio=f"{row['stress_ratio']:.3f}",
                                         sps=f"{row['steps_per_s']:.3g}")
                 if ckpt is not None and since_ckpt >= checkpoint_every:
                     since_ckpt = 0
-                    _write_checkpoint(state, ckpt, k, step, rec)
+                    _write_checkpoint(state, ckpt, k, step, rec, n_steps, rate)
     finally:
         rec.close()
         if bar is not None:
@@ -249,8 +257,24 @@ def load_run(folder) -> Run:
     return Run(history=history, final=load(folder / "final.npz"), snapshots=snaps, meta=meta)
 
 
-def _write_checkpoint(state: DEMState, ckpt: Path, segment: int, step: int, rec: _Recorder) -> None:
-    state.meta["checkpoint"] = {"segment": segment, "step": step, "rate": state.boundary_rate.tolist()}
+def _rate_norm(segment) -> float:
+    return float(np.abs(segment[1]).max()) if segment[0] is not None else float(segment[5][1])
+
+
+def _adaptive_increment(sim: Simulation, dE: np.ndarray, control: tuple):
+    """Steps and rate of a strain increment dE so that the inertial number stays at its target at
+    the current pressure: rate = I d / sqrt(rho / p), capped at the initial rate."""
+    inertial, max_rate = control
+    p = max(-0.5 * float(np.trace(measures.stress_from_walls(sim.state))), 1.0)
+    rate = min(_rate_for_inertial_number(sim.state, p, inertial), max_rate)
+    n = max(1, int(round(np.abs(dE).max() / rate / sim.dt)))
+    return n, dE / (n * sim.dt)
+
+
+def _write_checkpoint(state: DEMState, ckpt: Path, segment: int, step: int, rec: _Recorder, n_steps: int,
+                      segment_rate: np.ndarray) -> None:
+    state.meta["checkpoint"] = {"segment": segment, "step": step, "rate": state.boundary_rate.tolist(),
+                                "n_steps": int(n_steps), "segment_rate": np.asarray(segment_rate).tolist()}
     h = rec.history()
     snap_rows = np.array([s[0] for s in rec.snapshots], int)
     snap_pos = np.array([s[1] for s in rec.snapshots]) if rec.snapshots else np.zeros((0, state.n_particles, 2))
@@ -314,7 +338,9 @@ def rotate_strain(state: DEMState, eps_q: float | None = None, rotation_deg: flo
     The strain measured from the reference box is driven through ``alpha_eps = 0 .. rotation_deg`` in
     increments ``increment_deg``; each increment prescribes the boundary velocity
     ``(eps(alpha_i+1) - eps(alpha_i)) / t_i`` (D.4: the walls translate and rotate with the affine
-    map). ``eps_q`` defaults to the state's current value (then the path starts where the biaxial test
+    map), with ``t_i`` chosen at the start of the increment so that the inertial number at the
+    current pressure equals ``inertial_number`` (the pressure changes a lot at constant volume);
+    ``strain_rate`` caps the rate. One history record per increment. ``eps_q`` defaults to the state's current value (then the path starts where the biaxial test
     ended); otherwise the deviator is first ramped to ``eps_q`` at alpha = 0.
     """
     if not (np.isfinite(rotation_deg) and 0 < rotation_deg <= 360):
@@ -341,13 +367,12 @@ def rotate_strain(state: DEMState, eps_q: float | None = None, rotation_deg: flo
         alphas = np.append(alphas, rotation_deg)
     for a0, a1 in zip(alphas[:-1], alphas[1:]):
         dE = strain_at(a1, ev0, eps_q) - strain_at(a0, ev0, eps_q)
-        n = max(1, int(round(np.abs(dE).max() / rate / dt)))
-        segments.append((n, dE / (n * dt), None, float(a1)))
-    record_every = max(1, min(s[0] for s in segments) // records_per_increment)
+        estimate = max(1, int(round(np.abs(dE).max() / rate / dt)))
+        segments.append((None, dE, None, float(a1), estimate, (inertial_number, rate)))
     meta = {"experiment": "rotate_strain", "eps_v": ev0, "eps_q": eps_q, "rotation_deg": rotation_deg,
             "increment_deg": increment_deg, "strain_rate": rate, "dt": dt, "seed": state.meta.get("seed"),
             "version": _version()}
-    return _drive(state, segments, record_every, out, checkpoint_every, resume, progress, snapshot_every,
+    return _drive(state, segments, None, out, checkpoint_every, resume, progress, snapshot_every,
                   "rotation", meta)
 
 

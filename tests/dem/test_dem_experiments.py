@@ -101,3 +101,15 @@ def test_resume_reproduces_uninterrupted_run(tmp_path, isotropic):
     np.testing.assert_array_equal(resumed["sigma_yy_kPa"], full["sigma_yy_kPa"])
     lines = (tmp_path / "history.csv").read_text().splitlines()
     assert len(lines) == len(full["step"]) + 1
+
+
+def test_rotation_resume_and_inertial_number(tmp_path, biaxial_run):
+    """Adaptive increments (duration from the current pressure) resume bit for bit; I stays < 1e-3."""
+    kwargs = dict(rotation_deg=20.0, increment_deg=2.0)
+    full = dem.rotate_strain(biaxial_run.final, **kwargs)
+    assert np.nanmax(full["inertial_number"]) < 1e-3
+    n = full.final.steps - biaxial_run.final.steps
+    dem.rotate_strain(biaxial_run.final, out=tmp_path, checkpoint_every=int(0.55 * n), **kwargs)
+    resumed = dem.rotate_strain(biaxial_run.final, out=tmp_path, resume=True, **kwargs)
+    np.testing.assert_array_equal(resumed.final.positions, full.final.positions)
+    np.testing.assert_array_equal(resumed["alpha_sigma_deg"], full["alpha_sigma_deg"])
