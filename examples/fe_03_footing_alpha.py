@@ -21,7 +21,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="out/fe_03_footing")
     args = ap.parse_args(argv)
-    res, steps, alphas = (1, 10, (0.0, 90.0)) if args.quick else (3, 40, (0.0, 30.0, 60.0, 90.0))
+    res, steps, alphas = (2, 20, (0.0, 90.0)) if args.quick else (3, 40, (0.0, 30.0, 60.0, 90.0))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result = {}

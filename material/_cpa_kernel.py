@@ -183,7 +183,7 @@ def _plane_strengths(normals6, om6, lam6, coeffs, eta0, eta_f, deta_f):
 
 @njit(cache=True)
 def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
-              comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm):
+              comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit):
     """Residuals and the condensed Newton system at the iterate (sig, kap).
 
     Two kinds of loading planes. A weakly mobilised plane (kappa_n <= A, i.e. eta(kappa_n) <= zeta
@@ -239,7 +239,7 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
         zef = zeta * ef
         kn = kap_n[a]
         if sigma_N <= 0.0 or tau <= tau_tiny:
-            if active[a] and kn > A:
+            if active[a] and kn > k_explicit:
                 if update_active != 1:
                     return False, np.inf, changed, np.inf, np.inf
                 changed = True  # a loading plane that lost its compression or its shear unloads
@@ -251,7 +251,7 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
                 return False, np.inf, changed, np.inf, np.inf
             continue
         etah = (tau - c) / sigma_N  # mobilised ratio
-        if kn <= A:
+        if kn <= k_explicit:
             # weakly mobilised plane (eta(kappa_n) <= zeta eta_f / 2): explicit inverse law, kappa(etah),
             # smooth even where tau -> 0 (dkappa s ~ t_s), admissible only inside the barrier
             if etah >= zef * (1.0 - 1e-9):
@@ -306,14 +306,18 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
     """
     code = 0.0
     if update_active != 0:
+        # switches with a small hysteresis (1e-12 in kappa/A to switch off, 1e-7 zeta eta_f of overstress
+        # to switch on), so that a plane that sits on its loading/unloading kink under a tiny increment
+        # cannot flip at every iteration (the classical cycling of multi-surface return mappings); the
+        # overstress it may keep is physically negligible
         if active[a]:
-            if kap[a] < kn:
+            if kap[a] < kn - 1e-12 * (A + kn):
                 if update_active == 1:
                     active[a] = False
                     kap[a] = kn
                     return _SWITCHED, 0.0, 0.0
                 code = _SWITCH_DUE
-        elif etah > zef * kn / (A + kn):  # loading beyond the level reached so far (2.16)
+        elif etah > zef * (kn / (A + kn) + 1e-7):  # loading beyond the level reached so far (2.16)
             if update_active == 1:
                 active[a] = True
                 kap[a] = kn
@@ -446,14 +450,15 @@ def _is_strictly_compressive(sig, normals):
 
 @njit(cache=True)
 def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
-            comp, tol, tol_g, maxit, de_norm, active, r, J, rhs, work, bvec, tmp, piv, dk_step, sig_try, kap_try):
+            comp, tol, tol_g, maxit, de_norm, active, r, J, rhs, work, bvec, tmp, piv, dk_step, sig_try, kap_try,
+            k_explicit):
     """Newton on (sigma, kappa) from the given iterate, with an active-set update at each iteration and a
     backtracking line search on the merit function (active set frozen). Returns (ok, iterations);
     on success J holds the LU factors of the condensed Jacobian at the solution."""
     M = normals.shape[0]
     ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r, J, rhs, work,
-                                             bvec, tmp, de_norm)
+                                             bvec, tmp, de_norm, k_explicit)
     dsig = tmp[4]
     # round-off floor of |r|: S (sigma - sigma_n) is computed from stresses of size |sigma|, so |r| cannot
     # go below ~1e-16 |S| |sigma|; a tiny increment would otherwise ask for less than round-off
@@ -493,7 +498,7 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
                 kap_try[a] = kap[a] + alpha * dk_step[a]
             ok2, merit2, due, rn2, gmax2 = _assemble(sig_try, kap_try, sig_n, de, kap_n, normals, nn6, weights,
                                                      cohesion, eta_f, zeta, A, inv_t, eta_c_ratio, comp, 2, True,
-                                                     active, r, J, rhs, work, bvec, tmp, de_norm)
+                                                     active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
@@ -507,7 +512,7 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
         if due:
             ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion,
                                                      eta_f, zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r,
-                                                     J, rhs, work, bvec, tmp, de_norm)
+                                                     J, rhs, work, bvec, tmp, de_norm, k_explicit)
         else:
             ok, merit, changed, rn, gmax = True, merit2, False, rn2, gmax2
     return False, maxit
@@ -517,6 +522,25 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
 def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
                    comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred,
                    kap, bvec, dk_step, kap_try):
+    """One (sub)step with the hybrid local Newton (planes with kappa_n > A keep kappa as an unknown);
+    if that fails, once more with every plane explicit (the stress-only form, kappa = kappa(etah)),
+    which resolves the active-set cycling of planes that sit exactly on their loading/unloading kink
+    under a tiny increment. Returns (ok, iterations)."""
+    ok, its = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
+                               eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
+                               delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A)
+    if ok:
+        return ok, its
+    ok, its2 = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
+                                eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
+                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, np.inf)
+    return ok, its + its2
+
+
+@njit(cache=True)
+def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
+                     comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred,
+                     kap, bvec, dk_step, kap_try, k_explicit):
     """One (sub)step: elastic trial, else Newton on (sigma, kappa). Returns (ok, iterations).
 
     ``pred`` (6, 6) is the consistent tangent of the point's previous plastic step (pred[0, 0] == 0 when
@@ -560,7 +584,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
         if admissible:
             ok, its = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
                               eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp,
-                              piv, dk_step, sig_try, kap_try)
+                              piv, dk_step, sig_try, kap_try, k_explicit)
             if ok:
                 _finish_substep(kap, kap_n, active, dkap)
                 return True, its
@@ -576,7 +600,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
         active[a] = False
     ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, False, active, r, J, delta,
-                                             work, bvec, tmp, de_norm)
+                                             work, bvec, tmp, de_norm, k_explicit)
     any_active = False
     for a in range(M):
         any_active = any_active or active[a]
@@ -604,7 +628,7 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
                 sig[i] = p if i < 3 else 0.0
     ok, its2 = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
                        eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp, piv,
-                       dk_step, sig_try, kap_try)
+                       dk_step, sig_try, kap_try, k_explicit)
     if ok:
         _finish_substep(kap, kap_n, active, dkap)
     return ok, its + its2
@@ -658,6 +682,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     B = mats[1]
     Dsig = mats[2]
     total_it = 0
+    s_last = np.inf
     # tension cut-off (MODEL.md "Tension"), first case: when the elastic trial stress has no compression
     # left (mean stress >= 0) no stress state of the cone can follow the increment
     p_trial = 0.0
@@ -696,6 +721,10 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             total_it += its
             if not ok:
                 failed = True
+                # how close to the apex the finest sub-stepping got before it stopped
+                s_last = 0.0
+                for i in range(6):
+                    s_last = max(s_last, abs(sig_prev[i]))
                 break
             if want_tangent:
                 # B = S Dsig_{k-1} + I/m + sum_active (w/t)(SN - dil NN) (x) Dkap_{k-1,a}
@@ -800,9 +829,16 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     for j in range(6):
                         D_out[i, j] = Dsig[i, j]
             return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
-    # second case: no sub-step sequence converged and the trial stress pulls some plane apart (the
-    # increment opens the material faster than plastic dilation can follow, so the path runs into the
-    # apex of the cone, as sub-stepping shows): the point goes to the apex
+    # second case: no sub-step sequence converged, and either the finest one ran into the apex (its last
+    # converged stress is under 5 % of the start stress, or the point started on the apex) or the trial
+    # stress pulls some plane apart: the increment opens the material faster than plastic dilation can
+    # follow, and the point goes to the apex
+    s_start = 0.0
+    for i in range(6):
+        s_start = max(s_start, abs(sig_n[i]))
+    if s_last <= 0.05 * s_start:
+        _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
+        return _OK, 1 << max_level, total_it, True
     for i in range(6):
         trial[i] = sig_n[i]
         for j in range(6):

@@ -178,14 +178,20 @@ class CPAModel:
         return out[0] if squeeze else out
 
     # ----------------------------------------------------------------------------- state
-    def initial_state(self, n_points: int, stress=None) -> State:
+    def initial_state(self, n_points: int, stress=None, *, elastic_margin: float = 0.05) -> State:
         """State of ``n_points`` Gauss points that carry the initial stress ``stress`` (tension +).
 
-        Each plane starts on the hardening curve of that stress: kappa_a = A etah_a / (zeta eta_f,a -
-        etah_a) with the mobilised ratio etah_a of ``stress`` (0 for an isotropic stress); the plastic
-        strain and the total strain start at zero. A stress that reaches the failure surface on some
-        plane is rejected.
+        Each plane starts at the hardening level of that stress: kappa_a = A e_a / (zeta eta_f,a - e_a)
+        with e_a = (1 + elastic_margin) etah_a, etah_a the mobilised ratio of ``stress`` (0 for an
+        isotropic stress), capped at 0.98 zeta eta_f,a. The default margin of 5 % gives an in-situ
+        (e.g. K0) state a small elastic range: a sand consolidated under that stress reloads elastically
+        at first, and a boundary-value problem does not start with every plane of every point exactly
+        on its loading/unloading kink (where Newton's method converges poorly). ``elastic_margin=0``
+        puts every plane exactly on its hardening curve. The plastic strain and the total strain start
+        at zero. A stress that reaches the failure surface on some plane is rejected.
         """
+        if not (0.0 <= float(elastic_margin) <= 1.0):
+            raise ValueError(f"elastic_margin = {elastic_margin!r}: allowed 0..1")
         sig = as_stress_batch(stress, n_points)
         n = sig.shape[0]
         M = self.n_planes
@@ -210,7 +216,10 @@ class CPAModel:
             # round-off shear (|tau| ~ 1e-16 |sigma|) counts as none, as in the kernel
             tiny = 1e-13 * np.abs(sig).max(axis=(1, 2))[:, None]
             etah = np.where(tau <= tiny, 0.0, np.maximum(etah, 0.0))
-            kappa = self.params.A * etah / (zef - etah)
+            # the reached level sits `elastic_margin` above the initial mobilisation (capped below the
+            # barrier): a small elastic range around the in-situ stress
+            level = np.minimum(etah * (1.0 + elastic_margin), np.maximum(etah, 0.98 * zef))
+            kappa = self.params.A * level / (zef - level)
         return {
             "strain": np.zeros((n, 3, 3)),
             "plastic_strain": np.zeros((n, 3, 3)),

@@ -27,12 +27,10 @@ def test_fe_02_triaxial_platens(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="CPA kernel returns STATUS_FAILED for strain increments below ~1e-7 at K0 states "
-                          "(far-field points of the footing), so the run stops cleanly at t = 0; see the issue-3 note",
-                   strict=False)
 def test_fe_03_footing_alpha(tmp_path):
     result = _load("fe_03_footing_alpha").main(["--quick", "--out", str(tmp_path)])
-    assert result[0.0] > 10.0  # above the surcharge
+    # well above the 10 kPa surcharge (the runs stop early: see the issue-3 note)
+    assert result[0.0] > 100.0 and result[90.0] > 100.0
 
 
 def test_fe_04_biaxial_meshes(tmp_path):
