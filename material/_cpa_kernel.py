@@ -296,7 +296,7 @@ _SWITCHED = -2e300
 _SWITCH_DUE = -3e300
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
     """Active-set logic and hardening residual of a strongly mobilised plane (kappa an unknown).
 
@@ -336,7 +336,7 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
     return code, apk * apk / (zef * A), g
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _plane_terms(a, dk, kprime, g, sigma_N, tau, etah, ts0, ts1, ts2, c, ef, n0, n1, n2, nn6, weights, inv_t,
                  eta_c_ratio, want_jac, r, J, rhs, work, bvec, tmp):
     """Add a loading plane's flow (2.7, 2.9) to the residual and its terms to the condensed system."""
