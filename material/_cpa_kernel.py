@@ -820,14 +820,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             for i in range(6):
                 sig_prev[i] = sig[i]
         if not failed:
-            for i in range(6):
-                sig_out[i] = sig_prev[i]
-            for a in range(M):
-                kap_out[a] = kap[a]
-            if want_tangent:
-                for i in range(6):
-                    for j in range(6):
-                        D_out[i, j] = Dsig[i, j]
+            _write_result(sig_out, kap_out, D_out, sig_prev, kap, Dsig, want_tangent)
             return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
     # second case: no sub-step sequence converged, and either the finest one ran into the apex (its last
     # converged stress is under 5 % of the start stress, or the point started on the apex) or the trial
@@ -848,15 +841,20 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
         if t0 * normals[a, 0] + t1 * normals[a, 1] + t2 * normals[a, 2] > 0.0:
             _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
             return _OK, 1 << max_level, total_it, True
+    _write_result(sig_out, kap_out, D_out, sig_n, kap_n, stiff, want_tangent)  # failed: start of step
+    return _FAILED, 1 << max_level, total_it, False
+
+
+@njit(cache=True, inline="always")
+def _write_result(sig_out, kap_out, D_out, sig, kap, D, want_tangent):
     for i in range(6):
-        sig_out[i] = sig_n[i]
-    for a in range(M):
-        kap_out[a] = kap_n[a]
+        sig_out[i] = sig[i]
+    for a in range(kap.shape[0]):
+        kap_out[a] = kap[a]
     if want_tangent:
         for i in range(6):
             for j in range(6):
-                D_out[i, j] = stiff[i, j]
-    return _FAILED, 1 << max_level, total_it, False
+                D_out[i, j] = D[i, j]
 
 
 @njit(cache=True)

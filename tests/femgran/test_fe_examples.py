@@ -1,38 +1,26 @@
 """Each examples/fe_*.py runs (quick settings) and gives one number that could have been wrong."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_fe_01_prandtl(tmp_path):
-    rows = _load("fe_01_prandtl").main(["--resolutions", "1", "2", "--out", str(tmp_path)])
+def test_fe_01_prandtl(tmp_path, load_example):
+    rows = load_example("fe_01_prandtl").main(["--resolutions", "1", "2", "--out", str(tmp_path)])
     assert rows[0][2] > rows[1][2] > 1.0 and rows[1][2] < 1.08  # converging to (2 + pi) c_u from above
     assert (tmp_path / "convergence.csv").is_file()
 
 
-def test_fe_02_triaxial_platens(tmp_path):
-    out = _load("fe_02_triaxial_platens").main(["--quick", "--out", str(tmp_path)])
+def test_fe_02_triaxial_platens(tmp_path, load_example):
+    out = load_example("fe_02_triaxial_platens").main(["--quick", "--out", str(tmp_path)])
     assert out[("rough", 45.0)][2] > 10 * max(out[("smooth", 45.0)][2], 1e-9)  # rough platens: non-uniform
 
 
 @pytest.mark.slow
-def test_fe_03_footing_alpha(tmp_path):
-    result = _load("fe_03_footing_alpha").main(["--quick", "--out", str(tmp_path)])
+def test_fe_03_footing_alpha(tmp_path, load_example):
+    result = load_example("fe_03_footing_alpha").main(["--quick", "--out", str(tmp_path)])
     # well above the 10 kPa surcharge (the runs stop early: see the issue-3 note)
     assert result[0.0] > 100.0 and result[90.0] > 100.0
 
 
-def test_fe_04_biaxial_meshes(tmp_path):
-    sols = _load("fe_04_biaxial_meshes").main(["--quick", "--out", str(tmp_path)])
+def test_fe_04_biaxial_meshes(tmp_path, load_example):
+    sols = load_example("fe_04_biaxial_meshes").main(["--quick", "--out", str(tmp_path)])
     assert 20.0 < sols[4].peak_friction_deg < 60.0
