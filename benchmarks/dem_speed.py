@@ -59,12 +59,17 @@ def read_dump(path: Path):
 
 def own_packing(seed: int = 12345):
     """Same specification without LAMMPS: 4,096 disks, d uniform 0.2-0.6 mm, compressed to 100 kPa."""
-    rng = np.random.default_rng(seed)
-    d = rng.uniform(2e-4, 6e-4, 4096)
+    # number-uniform diameters as a mass-based sieve curve: mass finer ~ (d^3 - a^3) / (b^3 - a^3)
+    d_mm = np.linspace(0.2, 0.6, 17)
+    finer = 100 * (d_mm**3 - 0.2**3) / (0.6**3 - 0.2**3)
     psd_path = Path(tempfile.mkdtemp()) / "uniform.csv"
-    psd_path.write_text("diameter_mm,percent_finer\n0.2,0\n0.6,100\n")  # mass-uniform; close enough
-    sample = dem.generate(4096, psd=psd_path, seed=seed, aspect=1.0, law=LAW)
-    return sample, d
+    psd_path.write_text("diameter_mm,percent_finer\n" + "".join(f"{a:.4f},{b:.6f}\n" for a, b in zip(d_mm, finer)))
+    # prepared with local damping (the benchmark law has none, like LAMMPS), timed with LAW
+    prep = LAW.replace(local_damping=0.7)
+    sample = dem.generate(4096, psd=psd_path, seed=seed, aspect=1.0, law=prep)
+    state = dem.isotropic_compression(sample, p_kPa=100.0, law=prep)
+    state.law = LAW
+    return state
 
 
 def bench_state(pos, radii, size) -> dem.DEMState:
@@ -143,8 +148,7 @@ def main(argv=None) -> None:
         state = bench_state(pos, radii, size)
     else:
         print("packing: LAMMPS not available -> dem generated a packing of the same specification")
-        sample, _ = own_packing()
-        state = dem.isotropic_compression(sample, p_kPa=100.0, law=LAW)
+        state = own_packing()
     print(f"settled state: Z = {dem.coordination_number(state, exclude_rattlers=False):.2f} contacts/disk, "
           f"wall stress {np.diag(dem.stress_from_walls(state)).round(1)} kPa")
     print(f"same law: kn={LAW.kn:.3g} N/m, kt={LAW.kt:.3g}, gamma_n={LAW.gamma_n:.3g} 1/s, mu={LAW.friction}, dt={DT:g} s; "
