@@ -235,6 +235,13 @@ class Discretisation:
         """(ndofs_scalar, dim) coordinates of the scalar DOFs [m]."""
         return self.basis.doflocs.T
 
+    def element_size(self) -> np.ndarray:
+        """Size h of the element of each quadrature point, (element area or volume)^(1/dim) [m], (N,).
+
+        The length the crack-band regularisation of a softening law divides by (linear elements; a
+        quadratic element can hold a band narrower than itself, so its h is an upper bound)."""
+        return np.repeat(self.dx.sum(axis=1) ** (1.0 / self.dim), self.nqp)
+
     def quadrature_points(self) -> np.ndarray:
         """(N, dim) global coordinates of the quadrature points [m], element-major."""
         x = np.asarray(self.basis.global_coordinates())  # (dim, nel, nq)

@@ -273,7 +273,7 @@ class NewtonSolver:
         for name, f in (("f_fixed", self.f_fixed), ("f_ramp", self.f_ramp)):
             if f.shape != (n,) or not np.all(np.isfinite(f)):
                 raise ValueError(f"{name}: expected a finite vector of shape ({n},), got {f.shape}")
-        self.points = PointState(material, disc.n_points, initial_stress)
+        self.points = PointState(material, disc.n_points, initial_stress, element_size=disc.element_size())
         self.u = np.zeros(n)
         self.t = 0.0
         all_d = np.concatenate([d.dofs for d in self.dirichlet]) if self.dirichlet else np.zeros(0, np.int64)

@@ -50,15 +50,23 @@ class PointState:
         Number of quadrature points N = nelems * nqp.
     initial_stress : None, (3, 3) or (N, 3, 3)
         In-situ stress [kPa], tension positive.
+    element_size : None or (N,) [m]
+        Size of each point's element, passed to materials whose ``initial_state`` takes an
+        ``element_size`` keyword (regularised softening, e.g. :class:`material.CPAModel`).
     """
 
-    def __init__(self, material, n_points: int, initial_stress=None):
+    def __init__(self, material, n_points: int, initial_stress=None, element_size=None):
+        import inspect
+
         from material.base import as_stress_batch
 
         self.material = material
         self.n_points = int(n_points)
         self.stress = as_stress_batch(initial_stress, self.n_points, "initial_stress")
-        self.state = material.initial_state(self.n_points, stress=self.stress)
+        kw = {}
+        if element_size is not None and "element_size" in inspect.signature(material.initial_state).parameters:
+            kw["element_size"] = element_size
+        self.state = material.initial_state(self.n_points, stress=self.stress, **kw)
         self.trial_stress = self.stress.copy()
         self.trial_state = copy_state(self.state)
         self.tangent = None

@@ -183,7 +183,7 @@ def _plane_strengths(normals6, om6, lam6, coeffs, eta0, eta_f, deta_f):
 
 @njit(cache=True)
 def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
-              comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit):
+              comp, update_active, want_jac, active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit, h_on, sp):
     """Residuals and the condensed Newton system at the iterate (sig, kap).
 
     Two kinds of loading planes. A weakly mobilised plane (kappa_n <= A, i.e. eta(kappa_n) <= zeta
@@ -238,8 +238,10 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
         ef = eta_f[a]
         zef = zeta * ef
         kn = kap_n[a]
+        # explicit (inverted law) plane: weakly mobilised, and before its peak when it can soften
+        explicit = kn <= k_explicit and not (sp[1] > 0.0 and kn >= sp[0])
         if sigma_N <= 0.0 or tau <= tau_tiny:
-            if active[a] and kn > k_explicit:
+            if active[a] and not explicit:
                 if update_active != 1:
                     return False, np.inf, changed, np.inf, np.inf
                 changed = True  # a loading plane that lost its compression or its shear unloads
@@ -251,7 +253,7 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
                 return False, np.inf, changed, np.inf, np.inf
             continue
         etah = (tau - c) / sigma_N  # mobilised ratio
-        if kn <= k_explicit:
+        if explicit:
             # weakly mobilised plane (eta(kappa_n) <= zeta eta_f / 2): explicit inverse law, kappa(etah),
             # smooth even where tau -> 0 (dkappa s ~ t_s), admissible only inside the barrier
             if etah >= zef * (1.0 - 1e-9):
@@ -268,7 +270,7 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
             kprime = A * zef / ((zef - etah) * (zef - etah))  # d kappa / d etah
             g = 0.0
         else:
-            dk, kprime, g = _implicit_plane(a, update_active, active, kap, kn, etah, zef, A)
+            dk, kprime, g = _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, sp)
             if dk == _INADMISSIBLE:
                 return False, np.inf, changed, np.inf, np.inf
             if dk == _SWITCHED:
@@ -297,7 +299,7 @@ _SWITCH_DUE = -3e300
 
 
 @njit(cache=True, inline="always")
-def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
+def _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, sp):
     """Active-set logic and hardening residual of a strongly mobilised plane (kappa an unknown).
 
     Returns (code or 0, 1/eta'(kappa), g); the code is _SWITCHED when the plane was switched on or off
@@ -306,8 +308,8 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
     """
     code = 0.0
     if update_active != 0:
-        # switches with a small hysteresis (1e-12 in kappa/A to switch off, 1e-7 zeta eta_f of overstress
-        # to switch on), so that a plane that sits on its loading/unloading kink under a tiny increment
+        # switches with a small hysteresis (1e-12 in kappa/A to switch off, h_on zeta eta_f of overstress
+        # to switch on, h_on = _H_ON = 1e-7 normally), so that a plane that sits on its loading/unloading kink under a tiny increment
         # cannot flip at every iteration (the classical cycling of multi-surface return mappings); the
         # overstress it may keep is physically negligible
         if active[a]:
@@ -317,7 +319,7 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
                     kap[a] = kn
                     return _SWITCHED, 0.0, 0.0
                 code = _SWITCH_DUE
-        elif etah > zef * (kn / (A + kn) + 1e-7):  # loading beyond the level reached so far (2.16)
+        elif etah > _hardening(kn, kn, ef, zef, A, sp)[0] + zef * h_on:  # loading beyond the level reached (2.16)
             if update_active == 1:
                 active[a] = True
                 kap[a] = kn
@@ -331,9 +333,31 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, zef, A):
         # an iterate may take kappa below kappa_n (the plane is about to unload; the next active-set
         # update switches it off) but must keep A + kappa > 0 for the hardening curve to make sense
         return _INADMISSIBLE, 0.0, 0.0
+    eta, deta = _hardening(k, kn, ef, zef, A, sp)
+    if deta == 0.0:
+        return _INADMISSIBLE, 0.0, 0.0
+    return code, 1.0 / deta, etah - eta  # hardening law (2.16) residual
+
+
+@njit(cache=True, inline="always")
+def _hardening(k, kn, ef, zef, A, sp):
+    """eta(kappa) and d eta / d kappa of a plane: the hyperbola (2.16) up to kappa* = sp[0], then
+    (sp[1] = softening slip scale of this point > 0) the hyperbolic decay to sp[2] eta_f,
+    eta = eta_f (r + (1 - r) / (1 + (kappa - kappa*) / s)). Both are proportional to eta_f.
+
+    The branch is chosen by the slip at the start of the (sub)step, kn, not by the iterate: the law
+    has a peak at kappa*, where Newton on g = etah - eta(kappa) has no well-posed linearisation (two
+    roots below eta_f, none above). A plane that passes kappa* during a step finishes it on the
+    hyperbola (overshooting eta_f by at most the hardening of one step) and softens from the next;
+    the error is first order in the step and the tangent stays consistent with what is computed."""
+    if sp[1] > 0.0 and kn >= sp[0]:
+        x = 1.0 + (k - sp[0]) / sp[1]
+        if x <= 1e-3:
+            return 0.0, 0.0  # far below the start of the softening branch: not admissible
+        r = sp[2]
+        return ef * (r + (1.0 - r) / x), -ef * (1.0 - r) / (sp[1] * x * x)
     apk = A + k
-    g = etah - zef * k / apk  # hardening law (2.16) residual
-    return code, apk * apk / (zef * A), g
+    return zef * k / apk, zef * A / (apk * apk)
 
 
 @njit(cache=True, inline="always")
@@ -451,14 +475,14 @@ def _is_strictly_compressive(sig, normals):
 @njit(cache=True)
 def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t, eta_c_ratio,
             comp, tol, tol_g, maxit, de_norm, active, r, J, rhs, work, bvec, tmp, piv, dk_step, sig_try, kap_try,
-            k_explicit):
+            k_explicit, h_on, sp):
     """Newton on (sigma, kappa) from the given iterate, with an active-set update at each iteration and a
     backtracking line search on the merit function (active set frozen). Returns (ok, iterations);
     on success J holds the LU factors of the condensed Jacobian at the solution."""
     M = normals.shape[0]
     ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r, J, rhs, work,
-                                             bvec, tmp, de_norm, k_explicit)
+                                             bvec, tmp, de_norm, k_explicit, h_on, sp)
     dsig = tmp[4]
     # round-off floor of |r|: S (sigma - sigma_n) is computed from stresses of size |sigma|, so |r| cannot
     # go below ~1e-16 |S| |sigma|; a tiny increment would otherwise ask for less than round-off
@@ -498,7 +522,7 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
                 kap_try[a] = kap[a] + alpha * dk_step[a]
             ok2, merit2, due, rn2, gmax2 = _assemble(sig_try, kap_try, sig_n, de, kap_n, normals, nn6, weights,
                                                      cohesion, eta_f, zeta, A, inv_t, eta_c_ratio, comp, 2, True,
-                                                     active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit)
+                                                     active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit, h_on, sp)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
@@ -512,7 +536,7 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
         if due:
             ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion,
                                                      eta_f, zeta, A, inv_t, eta_c_ratio, comp, 1, True, active, r,
-                                                     J, rhs, work, bvec, tmp, de_norm, k_explicit)
+                                                     J, rhs, work, bvec, tmp, de_norm, k_explicit, h_on, sp)
         else:
             ok, merit, changed, rn, gmax = True, merit2, False, rn2, gmax2
     return False, maxit
@@ -521,26 +545,46 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
 @njit(cache=True)
 def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
                    comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred,
-                   kap, bvec, dk_step, kap_try):
+                   kap, bvec, dk_step, kap_try, last_resort, sp):
     """One (sub)step with the hybrid local Newton (planes with kappa_n > A keep kappa as an unknown);
     if that fails, once more with every plane explicit (the stress-only form, kappa = kappa(etah)),
     which resolves the active-set cycling of planes that sit exactly on their loading/unloading kink
-    under a tiny increment. Returns (ok, iterations)."""
+    under a tiny increment. Returns (ok, iterations).
+
+    ``last_resort`` (the finest sub-step level only): if both fail, a third attempt with a wider
+    switch-on hysteresis, _H_ON_WIDE zeta eta_f instead of _H_ON. It resolves the case where the local
+    problem of non-associated multi-plane flow has no consistent active set for the increment (a
+    plane loads when it is elastic and unloads when it is loading: the active-set loop cycles for
+    ever); the plane then stays elastic for this sub-step with an overstress below 1e-4 zeta eta_f
+    sigma_N, which the next increment removes as soon as it loads the plane by more.
+    """
     ok, its = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
-                               delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A)
+                               delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A, _H_ON, sp)
     if ok:
         return ok, its
     ok, its2 = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                 eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
-                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, np.inf)
+                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, np.inf, _H_ON, sp)
+    its += its2
+    if ok or not last_resort:
+        return ok, its
+    ok, its2 = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
+                                eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
+                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A, _H_ON_WIDE, sp)
     return ok, its + its2
+
+
+# switch-on hysteresis of a strongly mobilised plane (overstress in units of zeta eta_f), see
+# _implicit_plane and _solve_substep
+_H_ON = 1e-7
+_H_ON_WIDE = 1e-4
 
 
 @njit(cache=True)
 def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t, eta_c_ratio,
                      comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv, delta, trial, tmp, pred,
-                     kap, bvec, dk_step, kap_try, k_explicit):
+                     kap, bvec, dk_step, kap_try, k_explicit, h_on, sp):
     """One (sub)step: elastic trial, else Newton on (sigma, kappa). Returns (ok, iterations).
 
     ``pred`` (6, 6) is the consistent tangent of the point's previous plastic step (pred[0, 0] == 0 when
@@ -577,14 +621,17 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
             ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
             etah = (np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2) - cohesion[a]) / sN
             zef = zeta * eta_f[a]
-            if etah > zef * kap_n[a] / (A + kap_n[a]):
-                e = min(etah, zef * (1.0 - 1e-6))
-                kap[a] = max(kap_n[a], A * e / (zef - e))  # on the hardening curve (2.16)
+            if etah > _hardening(kap_n[a], kap_n[a], eta_f[a], zef, A, sp)[0]:
+                if sp[1] > 0.0 and kap_n[a] >= sp[0]:
+                    kap[a] = kap_n[a]  # past its peak: loading, from kappa_n
+                else:
+                    e = min(etah, zef * (1.0 - 1e-6))
+                    kap[a] = max(kap_n[a], A * e / (zef - e))  # on the hardening curve (2.16)
                 active[a] = True
         if admissible:
             ok, its = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
                               eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp,
-                              piv, dk_step, sig_try, kap_try, k_explicit)
+                              piv, dk_step, sig_try, kap_try, k_explicit, h_on, sp)
             if ok:
                 _finish_substep(kap, kap_n, active, dkap)
                 return True, its
@@ -600,7 +647,7 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
         active[a] = False
     ok, merit, changed, rn, gmax = _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f,
                                              zeta, A, inv_t, eta_c_ratio, comp, 1, False, active, r, J, delta,
-                                             work, bvec, tmp, de_norm, k_explicit)
+                                             work, bvec, tmp, de_norm, k_explicit, h_on, sp)
     any_active = False
     for a in range(M):
         any_active = any_active or active[a]
@@ -628,7 +675,7 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
                 sig[i] = p if i < 3 else 0.0
     ok, its2 = _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, zeta, A, inv_t,
                        eta_c_ratio, comp, tol, tol_g, maxit, de_norm, active, r, J, delta, work, bvec, tmp, piv,
-                       dk_step, sig_try, kap_try, k_explicit)
+                       dk_step, sig_try, kap_try, k_explicit, h_on, sp)
     if ok:
         _finish_substep(kap, kap_n, active, dkap)
     return ok, its + its2
@@ -643,7 +690,7 @@ def _finish_substep(kap, kap_n, active, dkap):
 @njit(cache=True)
 def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, ahat, bhat,
                   zeta, A, inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
-                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats, pred):
+                  sig_out, kap_out, D_out, bufs_f, bufs_b, piv, Dk, Dk_new, vecs, mats, pred, sp):
     """One Gauss point: adaptive sub-stepping around :func:`_solve_substep`, chain-rule tangent.
 
     Returns (status, substeps, iterations, cutoff).
@@ -717,7 +764,8 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             _plane_strengths(nn6, om6, lam6, coeffs, eta0, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                      eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work,
-                                     r, piv, delta, trial, tmp, pred, kap_it, bvec, dk_step, kap_try)
+                                     r, piv, delta, trial, tmp, pred, kap_it, bvec, dk_step, kap_try,
+                                     True, sp)
             total_it += its
             if not ok:
                 failed = True
@@ -874,7 +922,7 @@ def _apex(sig_out, kap_out, D_out, kap_n, stiff, rho, want_tangent):
 def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, ahat, bhat, zeta, A,
               inv_t,
               eta_c_ratio, comp, stiff, iopt, fopt, sig_out, kap_out, D_out, status, substeps, iterations, cutoff,
-              mobilised, pred):
+              mobilised, pred, kstar, soft, residual):
     """Update N Gauss points (Mandel vectors). Arrays:
 
     sig_n, de, eps_n (N, 6); kap_n (N, M); normals (M, 3) global; nn6 (M, 6) Mandel(n n);
@@ -882,6 +930,8 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
     comp, stiff (6, 6) elastic compliance / stiffness (Mandel); iopt = (maxit, max_level, want_tangent);
     fopt = (tol, tol_g, cutoff_stiffness): |R| <= tol |d_eps| and max_a |g_a| <= tol_g.
     pred (N, 6, 6) the tangent of each point's last plastic step (zeros where none) for the predictor.
+    Softening (:func:`_hardening`): kstar the peak slip A / (zeta - 1), soft (N,) the slip scale of each
+    point (0: none), residual the ratio eta_residual / eta_f.
     Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6), status, substeps, iterations (N,) int,
     cutoff (N,) bool, mobilised (N,) = max_a etah_a / eta_f,a at the end of the step.
     """
@@ -898,12 +948,16 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
         eps_end = np.empty(6)
         vecs = np.empty((20, 6))
         mats = np.empty((4, 6, 6))
+        sp = np.empty(3)
+        sp[0] = kstar
+        sp[2] = residual
         for p in range(c * block, min(N, (c + 1) * block)):
+            sp[1] = soft[p]
             st, m, its, cut = _point_update(sig_n[p], de[p], eps_n[p], kap_n[p], normals, nn6, weights, cohesion,
                                             om6, coeffs, eta0, beta, ahat, bhat, zeta, A, inv_t, eta_c_ratio, comp,
                                             stiff,
                                             iopt, fopt, sig_out[p], kap_out[p], D_out[p], bufs_f, bufs_b, piv,
-                                            Dk, Dk_new, vecs, mats, pred[p])
+                                            Dk, Dk_new, vecs, mats, pred[p], sp)
             status[p] = st
             substeps[p] = m
             iterations[p] = its

@@ -178,7 +178,8 @@ class CPAModel:
         return out[0] if squeeze else out
 
     # ----------------------------------------------------------------------------- state
-    def initial_state(self, n_points: int, stress=None, *, elastic_margin: float = 0.05) -> State:
+    def initial_state(self, n_points: int, stress=None, *, elastic_margin: float = 0.05,
+                      element_size=None) -> State:
         """State of ``n_points`` Gauss points that carry the initial stress ``stress`` (tension +).
 
         Each plane starts at the hardening level of that stress: kappa_a = A e_a / (zeta eta_f,a - e_a)
@@ -189,11 +190,24 @@ class CPAModel:
         on its loading/unloading kink (where Newton's method converges poorly). ``elastic_margin=0``
         puts every plane exactly on its hardening curve. The plastic strain and the total strain start
         at zero. A stress that reaches the failure surface on some plane is rejected.
+
+        ``element_size`` (scalar or (N,) [m], default t): the size h of the finite element each point
+        belongs to, which the post-peak softening law needs (``softening_slip > 0``): beyond the peak the
+        slip of a plane is read as a displacement jump across a band of thickness t smeared over h, so
+        the softening slip scale of the point is ``softening_slip t / h`` (the crack-band method,
+        Bazant & Oh 1983; Pietruszczak & Mroz 1981 for the averaging over an element with a band). The FE
+        solver passes it (:class:`femgran.state.PointState`); element drivers leave it at t, where the
+        point is the band.
         """
         if not (0.0 <= float(elastic_margin) <= 1.0):
             raise ValueError(f"elastic_margin = {elastic_margin!r}: allowed 0..1")
         sig = as_stress_batch(stress, n_points)
         n = sig.shape[0]
+        h = np.full(n, self.params.t) if element_size is None else np.broadcast_to(
+            np.asarray(element_size, dtype=float), (n,)).copy()
+        if not np.all(np.isfinite(h) & (h > 0)):
+            raise ValueError(f"element_size: {int(np.sum(~(np.isfinite(h) & (h > 0))))} value(s) are not "
+                             "finite and > 0; allowed: element sizes in m, > 0")
         M = self.n_planes
         kappa = np.zeros((n, M))
         if n and np.any(sig):
@@ -218,7 +232,9 @@ class CPAModel:
             etah = np.where(tau <= tiny, 0.0, np.maximum(etah, 0.0))
             # the reached level sits `elastic_margin` above the initial mobilisation (capped below the
             # barrier): a small elastic range around the in-situ stress
-            level = np.minimum(etah * (1.0 + elastic_margin), np.maximum(etah, 0.98 * zef))
+            # (below the peak eta_f when the planes can soften)
+            cap = 0.98 * (zef / self.params.zeta if self.params.softening_slip > 0 else zef)
+            level = np.minimum(etah * (1.0 + elastic_margin), np.maximum(etah, cap))
             kappa = self.params.A * level / (zef - level)
         return {
             "strain": np.zeros((n, 3, 3)),
@@ -231,7 +247,18 @@ class CPAModel:
             "tension_cutoff": np.zeros(n, dtype=bool),
             "mobilised_ratio": np.zeros(n),
             "predictor": np.zeros((n, 6, 6)),
+            "element_size": h,
         }
+
+    def _softening_scale(self, state: State, n: int) -> np.ndarray:
+        """Per point slip scale of the post-peak softening, softening_slip t / h (0: none)."""
+        p = self.params
+        if p.softening_slip == 0.0:
+            return np.zeros(n)
+        h = state.get("element_size")
+        if h is None:
+            return np.full(n, p.softening_slip)
+        return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
     # ----------------------------------------------------------------------------- update
     def update(self, d_strain, stress, state: State, *, tangent: bool = True):
@@ -296,7 +323,8 @@ class CPAModel:
             _k.cpa_batch(sig6, de6, eps6, kap_n, self.normals, self._nn6, self.weights, self._cohesion, self._om6,
                          self._coeffs, p.eta0, p.beta, p.alpha_hat, p.beta_hat, p.zeta, p.A, 1.0 / p.t,
                          p.eta_c_ratio, self._comp, self._stiff,
-                         iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised, pred)
+                         iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised, pred,
+                         p.kappa_instability, self._softening_scale(state, n), p.residual_ratio)
         finally:
             if prev_threads is not None:
                 import numba
@@ -325,6 +353,8 @@ class CPAModel:
             # Mandel tangent of the last plastic step: the Newton predictor of the next one
             "predictor": (np.where(((iterations > 0) & ok & ~cutoff)[:, None, None], D, pred) if tangent else pred),
         }
+        if "element_size" in state:
+            new_state["element_size"] = state["element_size"]
         if failed.any():
             self._record_failure(de, sig, state, np.flatnonzero(failed))
         tan = _k.tangent_from_mandel(D) if tangent else None

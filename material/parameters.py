@@ -69,6 +69,17 @@ class CPAParameters:
         Lambda = beta |e| n^Omega with n^Omega = alpha_hat n^e + beta_hat dev(n^e n^e), normalised
         (n^e = e / |e|, e the strain deviator). The defaults alpha_hat = 1, beta_hat = 0 give exactly
         Lambda = beta e (eq. 3.15 / the linear form 3.9). alpha_hat >= 0.
+    softening_slip : float
+        Post-peak softening of a plane [m], >= 0; 0 (the default, the thesis's law) switches it off.
+        With zeta > 1 a plane reaches eta_f at kappa* = A / (zeta - 1), the thesis's onset of
+        instability; beyond it the mobilised ratio decays hyperbolically (the mirror of 2.16),
+        eta = eta_f (r + (1 - r) / (1 + d / softening_slip)),
+        with d the slip past kappa* measured across the shear band (= (kappa - kappa*) h / t in a finite
+        element of size h: the regularisation by the band thickness t, :mod:`material.cpa`). Requires
+        zeta > 1.
+    residual_ratio : float
+        r = eta_residual / eta_f of the softening law, in (0, 1] [-]; default 0.65, the compaction-dilation
+        transition eta_c / eta_f of Table 3 (the critical state: no more dilation in the band).
     """
 
     E: float
@@ -86,6 +97,8 @@ class CPAParameters:
     beta: float = 0.0
     alpha_hat: float = 1.0
     beta_hat: float = 0.0
+    softening_slip: float = 0.0
+    residual_ratio: float = 0.65
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -119,6 +132,12 @@ class CPAParameters:
             raise ValueError(
                 "parameters 'alpha_hat' = 0 and 'beta_hat' = 0 give no direction to the induced tensor while "
                 f"'beta' = {self.beta!r}; allowed: alpha_hat > 0 or beta_hat != 0 (defaults 1, 0: Lambda = beta e)"
+            )
+        if self.softening_slip > 0.0 and self.zeta == 1.0:
+            raise ValueError(
+                f"parameter 'softening_slip' = {self.softening_slip!r} needs 'zeta' > 1 (the peak eta = eta_f is "
+                "reached at kappa* = A / (zeta - 1), infinite for zeta = 1); allowed: zeta in (1, 2] with "
+                "softening, or softening_slip = 0"
             )
 
     # ------------------------------------------------------------------ derived quantities
@@ -177,6 +196,9 @@ _FIELD_SPECS = (
     _FieldSpec("beta", "-", "0 <= beta (finite)", lambda v: math.isfinite(v) and v >= 0),
     _FieldSpec("alpha_hat", "-", "0 <= alpha_hat (finite)", lambda v: math.isfinite(v) and v >= 0),
     _FieldSpec("beta_hat", "-", "finite", lambda v: math.isfinite(v)),
+    _FieldSpec("softening_slip", "m", "softening_slip >= 0 (finite; 0: no softening)",
+               lambda v: math.isfinite(v) and v >= 0),
+    _FieldSpec("residual_ratio", "-", "0 < residual_ratio <= 1", lambda v: 0.0 < v <= 1.0),
 )
 FIELD_NAMES = tuple(s.name for s in _FIELD_SPECS) + ("name",)
 UNITS = {s.name: s.unit for s in _FIELD_SPECS}

@@ -284,3 +284,75 @@ def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one(
     # alpha_hat only scales the direction, which is normalised: identical to Lambda = beta e
     np.testing.assert_allclose(ends["same"], ends["linear"], rtol=1e-9)
     assert np.abs(ends["coaxial"] - ends["linear"]).max() > 0.1
+
+
+# ------------------------------------------------------------------ post-peak softening (zeta > 1)
+SOFT = dict(zeta=1.05, softening_slip=0.01, residual_ratio=0.65)
+DE_SHEAR = np.diag([0.8e-3, -1e-3, 0.0])  # compression along y, strain driven
+
+
+def _soft_path(h, n_steps=240, de=DE_SHEAR):
+    """Strain-driven shear path of one point of element size h; per step: the most active plane's
+    slip and mobilised ratio etah / eta_f."""
+    p = load_preset("ottawa_c109").replace(**SOFT)
+    model = CPAModel(p)
+    sig = -100.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0], element_size=h)
+    ef = model.friction_coefficients()
+    rows = []
+    for _ in range(n_steps):
+        sig, st, _ = model.update(de[None], sig, st)
+        assert st["status"][0] != STATUS_FAILED
+        a = int(np.argmax(st["kappa"][0]))
+        n = model.normals[a]
+        t = sig[0] @ n
+        sN = -n @ t
+        tau = np.linalg.norm(t + sN * n)
+        rows.append((st["kappa"][0, a], tau / sN / ef[a], st["mobilised_ratio"][0]))
+    return p, np.array(rows)
+
+
+def test_softening_past_the_peak_follows_the_law_scaled_by_the_element_size():
+    """eta of the most active plane: the hyperbola (2.16) up to kappa* (eta = eta_f), then
+    eta_f (r + (1 - r) / (1 + (kappa - kappa*) h / (t s))): the slip read as a jump across a band of
+    thickness t smeared over an element of size h (crack band)."""
+    for h in (0.006, 0.012):
+        p, rows = _soft_path(h)
+        kap, ratio, mob = rows.T
+        ks = p.kappa_instability
+        post = kap > ks * 1.05
+        assert post.sum() > 20  # well into the softening branch
+        law = p.residual_ratio + (1 - p.residual_ratio) / (1 + (kap[post] - ks) * h / (p.t * p.softening_slip))
+        # a plane that crosses kappa* within a step finishes that step on the hyperbola; after it, the law
+        # holds to the solver tolerance
+        np.testing.assert_allclose(ratio[post][2:], law[2:], rtol=1e-6)
+        assert 1.0 <= mob.max() <= 1.0 + 0.05  # the peak: eta_f, overshoot below one step's hardening
+        assert mob[-1] < 0.85  # and it softens towards the residual 0.65
+    # the larger element softens faster in slip (its slip is a smaller jump): lower ratio at the end
+    assert _soft_path(0.012)[1][-1, 1] < _soft_path(0.006)[1][-1, 1]
+
+
+def test_softening_tangent_matches_finite_differences():
+    p = load_preset("ottawa_c109").replace(**SOFT)
+    model = CPAModel(p)
+    sig = -100.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    for _ in range(150):  # past the peak of the most active plane
+        sig, st, _ = model.update(DE_SHEAR[None], sig, st)
+    assert st["kappa"][0].max() > 1.2 * p.kappa_instability
+    de = DE_SHEAR + np.array([[0, 1e-5, 2e-5], [1e-5, 0, -1e-5], [2e-5, -1e-5, 0]])
+    _, st1, D = model.update(de[None], sig, st)
+    assert st1["status"][0] == STATUS_OK
+    Dfd = _fd_tangent(model, sig, st, de)
+    err = np.abs(D[0] - Dfd).max() / np.abs(Dfd).max()
+    assert err < 1e-5, err
+
+
+def test_without_softening_the_mobilised_ratio_keeps_rising_past_eta_f():
+    p = load_preset("ottawa_c109").replace(zeta=1.05)
+    model = CPAModel(p)
+    sig = -100.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    for _ in range(240):
+        sig, st, _ = model.update(DE_SHEAR[None], sig, st)
+    assert 1.0 < st["mobilised_ratio"][0] < 1.05

@@ -25,7 +25,16 @@ INVALID = [
     ("beta", -0.1, "0 <= beta"), ("beta", math.inf, "0 <= beta"),
     ("alpha_hat", -0.1, "0 <= alpha_hat"), ("alpha_hat", math.nan, "0 <= alpha_hat"),
     ("beta_hat", math.inf, "finite"),
+    ("softening_slip", -1e-3, "softening_slip >= 0"), ("softening_slip", math.inf, "softening_slip >= 0"),
+    ("residual_ratio", 0.0, "0 < residual_ratio <= 1"), ("residual_ratio", 1.2, "0 < residual_ratio <= 1"),
 ]
+
+
+def test_softening_needs_a_finite_peak_slip():
+    with pytest.raises(ValueError, match="'softening_slip' = 0.001 needs 'zeta' > 1"):
+        CPAParameters(**BASE, softening_slip=1e-3)
+    p = CPAParameters(**{**BASE, "zeta": 1.05}, softening_slip=1e-3)
+    assert p.kappa_instability == pytest.approx(p.A / 0.05)
 
 
 def test_coaxial_law_needs_a_direction():
