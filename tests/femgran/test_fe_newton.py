@@ -250,3 +250,22 @@ def test_linear_solvers_agree():
     for method in ("amg-gmres", "ilu-gmres"):
         sol = NewtonSolver(d, vm, bcs, options=SolverOptions(linear_solver=method)).run(2)
         np.testing.assert_allclose(sol.u, ref.u, rtol=1e-6, atol=1e-9)
+
+
+def test_element_size_reaches_a_regularised_material():
+    """The solver hands each point's element size to a material whose initial_state takes it (the
+    crack-band scaling of CPA softening) and leaves other materials alone."""
+    from femgran.assembly import Discretisation
+    from femgran.mesh import rectangle
+    from femgran.state import PointState
+    from material import CPAModel, LinearElastic, load_preset
+
+    m = rectangle(np.linspace(0, 0.2, 5), np.linspace(0, 0.1, 3))  # 0.05 x 0.05 m quads
+    d = Discretisation(m, 1)
+    h = d.element_size()
+    np.testing.assert_allclose(h, 0.05, rtol=1e-12)
+    cpa = CPAModel(load_preset("ottawa_c109").replace(zeta=1.05, softening_slip=0.01))
+    ps = PointState(cpa, d.n_points, -100 * np.eye(3), element_size=h)
+    np.testing.assert_allclose(ps.state["element_size"], 0.05)
+    np.testing.assert_allclose(cpa._softening_scale(ps.state, d.n_points), 0.01 * 0.006 / 0.05)
+    PointState(LinearElastic(6000.0, 0.3), d.n_points, None, element_size=h)  # no such keyword: not passed

@@ -356,3 +356,20 @@ def test_without_softening_the_mobilised_ratio_keeps_rising_past_eta_f():
     for _ in range(240):
         sig, st, _ = model.update(DE_SHEAR[None], sig, st)
     assert 1.0 < st["mobilised_ratio"][0] < 1.05
+
+
+def test_point_whose_active_set_cycles_integrates_with_the_wide_hysteresis():
+    """A point from a CPA strip footing (near the surface, a tiny increment, several planes on their
+    loading/unloading kink) whose local problem has no consistent active set: the plane-by-plane switch
+    cycles for ever with the normal hysteresis. The last-resort attempt (switch-on overstress 1e-4 zeta
+    eta_f) integrates it in one step; the answer agrees with 1024 sub-steps to the size of that band."""
+    from pathlib import Path
+
+    path = Path(__file__).parent / "data" / "active_set_cycling_point.npz"
+    _, s1, st1, _ = replay(path, max_substep_level=0)
+    assert st1["status"][0] == STATUS_OK
+    _, s10, st10, _ = replay(path, max_substep_level=10)
+    assert st10["status"][0] != STATUS_FAILED
+    d = np.load(path)
+    ds = np.abs(s10[0] - d["stress"][0]).max()  # stress change over the increment
+    assert np.abs(s1[0] - s10[0]).max() <= max(1e-4 * np.abs(s10[0]).max(), ds)
