@@ -299,7 +299,9 @@ class NewtonSolver:
         de = self.disc.strain(du)
         stress, tangent, failed = self.points.evaluate(de)
         if failed.any():
-            raise _StepFailure(f"{int(failed.sum())} material point(s) failed", self.points.suggested_ratio())
+            where = getattr(self.points.material, "replay_dir", None)
+            hint = f" (their inputs: {where})" if where is not None else ""
+            raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}", self.points.suggested_ratio())
         r = self.disc.internal_force(stress) - self.external(t)
         if not np.all(np.isfinite(r)):
             raise _StepFailure("residual not finite")

@@ -255,8 +255,9 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
         etah = (tau - c) / sigma_N  # mobilised ratio
         if explicit:
             # weakly mobilised plane (eta(kappa_n) <= zeta eta_f / 2): explicit inverse law, kappa(etah),
-            # smooth even where tau -> 0 (dkappa s ~ t_s), admissible only inside the barrier
-            if etah >= zef * (1.0 - 1e-9):
+            # smooth even where tau -> 0 (dkappa s ~ t_s), admissible only inside the barrier (below the
+            # peak eta_f, where the inverse holds, when the plane can soften)
+            if etah >= (ef if sp[1] > 0.0 else zef) * (1.0 - 1e-9):
                 return False, np.inf, changed, np.inf, np.inf
             if tau <= tau_tiny or etah < zef * kn / (A + kn):
                 active[a] = False
@@ -345,12 +346,9 @@ def _hardening(k, kn, ef, zef, A, sp):
     (sp[1] = softening slip scale of this point > 0) the hyperbolic decay to sp[2] eta_f,
     eta = eta_f (r + (1 - r) / (1 + (kappa - kappa*) / s)). Both are proportional to eta_f.
 
-    The branch is chosen by the slip at the start of the (sub)step, kn, not by the iterate: the law
-    has a peak at kappa*, where Newton on g = etah - eta(kappa) has no well-posed linearisation (two
-    roots below eta_f, none above). A plane that passes kappa* during a step finishes it on the
-    hyperbola (overshooting eta_f by at most the hardening of one step) and softens from the next;
-    the error is first order in the step and the tangent stays consistent with what is computed."""
-    if sp[1] > 0.0 and kn >= sp[0]:
+    The law is continuous with a kink at its peak kappa*; :func:`_newton` stops an iterate that would
+    carry a plane across kappa* exactly there, so that Newton never linearises across the kink."""
+    if sp[1] > 0.0 and k >= sp[0]:
         x = 1.0 + (k - sp[0]) / sp[1]
         if x <= 1e-3:
             return 0.0, 0.0  # far below the start of the softening branch: not admissible
@@ -511,22 +509,36 @@ def _newton(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f, 
                 dk_step[a] = acc * work[a, 5]
             else:
                 dk_step[a] = 0.0
+        # a plane about to pass the peak of a softening law (kappa*) stops exactly on it: the step is
+        # shortened to the first such breakpoint, taken without the descent test (the merit function
+        # has a kink there), and the next iteration linearises the softening branch
+        alpha = 1.0
+        brk = -1
+        if sp[1] > 0.0:
+            for a in range(M):
+                if active[a] and kap[a] < sp[0] and kap[a] + dk_step[a] > sp[0]:
+                    f = (sp[0] - kap[a]) / dk_step[a]
+                    if f < alpha:
+                        alpha = f
+                        brk = a
         # line search with the active set frozen; the evaluation that is accepted also provides the
         # residuals and the Jacobian of the next iteration unless a plane is due to switch
-        alpha = 1.0
         accepted = False
         for _ls in range(40):
             for i in range(6):
                 sig_try[i] = sig[i] + alpha * dsig[i]
             for a in range(M):
                 kap_try[a] = kap[a] + alpha * dk_step[a]
+            if brk >= 0:
+                kap_try[brk] = sp[0]
             ok2, merit2, due, rn2, gmax2 = _assemble(sig_try, kap_try, sig_n, de, kap_n, normals, nn6, weights,
                                                      cohesion, eta_f, zeta, A, inv_t, eta_c_ratio, comp, 2, True,
                                                      active, r, J, rhs, work, bvec, tmp, de_norm, k_explicit, h_on, sp)
-            if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
+            if ok2 and (brk >= 0 or merit2 <= (1.0 - 1e-4 * alpha) * merit):
                 accepted = True
                 break
             alpha *= 0.5
+            brk = -1
         if not accepted:
             return False, it
         for i in range(6):
@@ -625,7 +637,7 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
                 if sp[1] > 0.0 and kap_n[a] >= sp[0]:
                     kap[a] = kap_n[a]  # past its peak: loading, from kappa_n
                 else:
-                    e = min(etah, zef * (1.0 - 1e-6))
+                    e = min(etah, (eta_f[a] if sp[1] > 0.0 else zef) * (1.0 - 1e-6))
                     kap[a] = max(kap_n[a], A * e / (zef - e))  # on the hardening curve (2.16)
                 active[a] = True
         if admissible:
@@ -875,9 +887,17 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     # stress pulls some plane apart: the increment opens the material faster than plastic dilation can
     # follow, and the point goes to the apex
     s_start = 0.0
+    s_inc = 0.0  # the elastic stress of the whole increment
     for i in range(6):
         s_start = max(s_start, abs(sig_n[i]))
-    if s_last <= 0.05 * s_start:
+        acc = 0.0
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        s_inc = max(s_inc, abs(acc))
+    # (or the point starts within one increment's elastic stress of the apex, or below 1e-6 of the
+    # elastic modulus, the only stress scale of a cohesionless law: putting it on the apex is an error
+    # of the size of the increment, like any first-order step)
+    if s_last <= 0.05 * s_start or s_start <= max(s_inc, 1e-6 * stiff[0, 0]):
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1 << max_level, total_it, True
     for i in range(6):

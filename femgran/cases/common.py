@@ -41,6 +41,15 @@ def make_material(material, alpha_deg: float, *, plane_strain: bool, rule: str =
     return material
 
 
+def keep_failed_points(material, out_dir) -> None:
+    """Let a CPA material write the inputs of points that fail to integrate to ``out_dir/failed_points``
+    (one replay file per failure, :func:`material.cpa.replay`), unless it already has a replay folder."""
+    if out_dir is not None and hasattr(material, "replay_dir") and material.replay_dir is None:
+        from pathlib import Path
+
+        material.replay_dir = Path(out_dir) / "failed_points"
+
+
 def material_record(material) -> dict:
     """A JSON-able description of the material (its repr, parameters and axes if it has them)."""
     rec = {"repr": repr(material), "type": type(material).__name__}

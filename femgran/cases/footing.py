@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import check_positive, make_material, material_record, run_folder, solver_options
+from femgran.cases.common import check_positive, keep_failed_points, make_material, material_record, run_folder, solver_options
 from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["footing", "footing_mesh", "prandtl_pressure"]
@@ -143,6 +143,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         return {"settlement_m": -float(np.mean(s.u[fy_dofs])), "pressure_kPa": -float(np.sum(r[fy_dofs])) / B}
 
     out_dir = run_folder(out)
+    keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, make_material, material_record, nodes_near, run_folder,
-                                  solver_options)
+from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, nodes_near,
+                                  run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["triaxial", "PLATENS"]
@@ -142,6 +142,7 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
                 "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
     out_dir = run_folder(out)
+    keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
               "axial_strain": ea, "steps": int(steps), "mesh": str(mesh) if mesh else f"box {n}x{n}x{2 * n} hex",
