@@ -80,6 +80,10 @@ class SolverOptions:
     or "ilu-gmres", or "auto" (the default, chosen by measurement, benchmarks/fe_newton.py: SuperLU for
     plane strain below 200k DOFs and 3D below 10k DOFs, AMG-GMRES above); krylov_tol : relative
     tolerance of the Krylov solvers.
+    tol_accept : None (default) or a looser tolerance >= tol: a step whose Newton iterations stall
+    (``max_iter`` reached, e.g. cycling among material active sets) with a residual <= tol_accept is
+    accepted instead of cut back; the history column ``residual`` shows its value, so such steps stay
+    visible.
     """
 
     tol: float = 1e-8
@@ -93,6 +97,7 @@ class SolverOptions:
     predictor: str = "tangent"
     linear_solver: str = "auto"
     krylov_tol: float = 1e-10
+    tol_accept: float | None = None
 
     def __post_init__(self):
         if self.linear_solver not in LINEAR_SOLVERS:
@@ -101,6 +106,8 @@ class SolverOptions:
             raise ValueError(f"predictor = {self.predictor!r}: allowed 'tangent' or 'none'")
         if not (0 < self.tol < 1):
             raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
+        if self.tol_accept is not None and not (self.tol <= self.tol_accept < 1):
+            raise ValueError(f"tol_accept = {self.tol_accept!r}: allowed None or tol <= tol_accept < 1")
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
             raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: need max_iter >= 1, max_cuts >= 0")
 
@@ -386,9 +393,11 @@ class NewtonSolver:
             residuals.append(rf / ref)
             if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
                 raise _StepFailure("Newton diverging")
-        if residuals[-1] <= opt.tol:
+        if residuals[-1] <= (opt.tol if opt.tol_accept is None else opt.tol_accept):
             return du, opt.max_iter, residuals
-        raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e})")
+        tail = ", ".join(f"{x:.1e}" for x in residuals[-6:])
+        raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e}; "
+                           f"last residuals {tail})")
 
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,

@@ -110,11 +110,15 @@ class CPAModel:
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
         Numba threads for the update (default: numba's setting).
+    regularise : bool
+        Scale the post-peak softening by each point's element size (``softening_slip t / h``, the
+        default; :meth:`initial_state`). False applies the law as if every element were one band
+        thickness t wide, whatever its size: the unregularised, mesh-dependent reference.
     """
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
                  maxit: int = 30, max_substep_level: int = 6, tol: float = 1e-10, cutoff_stiffness: float = 1e-6,
-                 replay_dir: str | os.PathLike | None = None, threads: int | None = None):
+                 replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True):
         from material.planes import integration_rule
 
         if isinstance(params, str):
@@ -135,6 +139,7 @@ class CPAModel:
         self.options = _Options(int(maxit), int(max_substep_level), float(tol), 1e-12, float(cutoff_stiffness))
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
+        self.regularise = bool(regularise)
         self.last_failure: dict | None = None
 
         normals_ref, weights = integration_rule(rule)
@@ -256,7 +261,7 @@ class CPAModel:
         if p.softening_slip == 0.0:
             return np.zeros(n)
         h = state.get("element_size")
-        if h is None:
+        if h is None or not self.regularise:
             return np.full(n, p.softening_slip)
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 

@@ -67,7 +67,8 @@ def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) 
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6):
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
+            tol_accept: float | None = 1e-4):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     Parameters
@@ -78,7 +79,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     resolution : elements across the width (2 x as many over the height); order : 1 or 2.
     imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
     tol : relative residual tolerance of the Newton iterations (1e-6, as for the footing: the plane
-        active sets make the CPA response non-smooth at about 1e-7).
+        active sets make the CPA response non-smooth at about 1e-7); tol_accept : see
+        :class:`femgran.solver.SolverOptions` (after the peak of a softening law Newton may stall).
 
     Returns
     -------
@@ -117,7 +119,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
            Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
     f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(linear_solver, tol=check_positive("tol", tol)))
+                          options=solver_options(linear_solver, tol=check_positive("tol", tol), tol_accept=tol_accept))
     xq = d.quadrature_points()
     w = d.dx.ravel()
     snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
@@ -136,7 +138,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     writer = None
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
               "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
-              "volumetric": volumetric, "linear_solver": linear_solver, "tol": tol, "material": material_record(mat),
+              "volumetric": volumetric, "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat)}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters

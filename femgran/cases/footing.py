@@ -69,7 +69,8 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
             depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6):
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
+            tol_accept: float | None = 1e-4):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
     Parameters
@@ -89,6 +90,9 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         loading and unloading near the footing, and the switch-on hysteresis of the plane active sets
         (1e-7 of the mobilised ratio, :mod:`material._cpa_kernel`) makes the material response
         non-smooth at about that level, so Newton stagnates between 1e-8 and 1e-7 there.
+    tol_accept : a step whose Newton iterations stall (cycling among plane active sets) with a residual
+        below this is accepted rather than cut back (:class:`femgran.solver.SolverOptions`); the history
+        column ``residual`` shows it. None: only ``tol`` counts.
 
     Returns
     -------
@@ -135,7 +139,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     sigma0[:, 1, 1] = sv
     sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
-                          options=solver_options(linear_solver, tol=check_positive("tol", tol)))
+                          options=solver_options(linear_solver, tol=check_positive("tol", tol), tol_accept=tol_accept))
     fy_dofs = bcs[2].dofs
 
     def observe(s):
@@ -148,7 +152,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
               "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
-              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "tol": tol, "material": material_record(mat),
+              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y (up)"}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters

@@ -23,4 +23,5 @@ def test_fe_03_footing_alpha(tmp_path, load_example):
 
 def test_fe_04_biaxial_meshes(tmp_path, load_example):
     sols = load_example("fe_04_biaxial_meshes").main(["--quick", "--out", str(tmp_path)])
-    assert 20.0 < sols[4].peak_friction_deg < 60.0
+    assert 20.0 < sols[(4, True)].peak_friction_deg < 60.0
+    assert (tmp_path / "summary.csv").is_file() and (tmp_path / "q_vs_eps_a_meshes.png").is_file()
