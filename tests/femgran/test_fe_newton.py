@@ -269,3 +269,33 @@ def test_element_size_reaches_a_regularised_material():
     np.testing.assert_allclose(ps.state["element_size"], 0.05)
     np.testing.assert_allclose(cpa._softening_scale(ps.state, d.n_points), 0.01 * 0.006 / 0.05)
     PointState(LinearElastic(6000.0, 0.3), d.n_points, None, element_size=h)  # no such keyword: not passed
+    plain = CPAModel(cpa.params, regularise=False)  # the mesh-dependent reference ignores h
+    np.testing.assert_allclose(plain._softening_scale(ps.state, d.n_points), 0.01)
+
+
+class _StiffTangent:
+    """Test double: a law whose tangent is 1.5 x the true one, so Newton converges only linearly."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def initial_state(self, n, stress=None):
+        return self.inner.initial_state(n, stress=stress)
+
+    def update(self, d_strain, stress, state):
+        s, st, D = self.inner.update(d_strain, stress, state)
+        return s, st, 1.5 * D
+
+
+def test_stalled_steps_are_accepted_below_tol_accept_and_only_there():
+    d, bcs = _plastic_cube()
+    mat = _StiffTangent(material.VonMises(1e4, 0.3, 20.0, 200.0))
+    strict = NewtonSolver(d, mat, bcs, options=SolverOptions(max_iter=4, max_cuts=1, line_search=0)).run(2)
+    assert not strict.completed and "last residuals" in strict.stop_reason
+    loose = NewtonSolver(d, mat, bcs, options=SolverOptions(max_iter=4, max_cuts=1, line_search=0,
+                                                            tol_accept=0.05)).run(2)
+    assert loose.completed
+    res = loose.history["residual"][1:]
+    assert np.all(res <= 0.05) and np.any(res > 1e-8)  # accepted above tol, and the history shows it
+    with pytest.raises(ValueError, match="tol_accept"):
+        SolverOptions(tol=1e-6, tol_accept=1e-8)
