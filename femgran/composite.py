@@ -49,12 +49,18 @@ class Composite:
             raise ValueError(f"Composite: {n} points, but the assignment has {self.assignment.size}")
         return int(n)
 
-    def initial_state(self, n_points: int, stress=None):
+    def initial_state(self, n_points: int, stress=None, element_size=None):
+        """States of every law on its points; ``element_size`` (N,) reaches the laws that take it."""
+        import inspect
+
         n = self._n(n_points)
         sig = as_stress_batch(stress, n)
         state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
-            sub = law.initial_state(idx.size, stress=sig[idx])
+            kw = {}
+            if element_size is not None and "element_size" in inspect.signature(law.initial_state).parameters:
+                kw["element_size"] = np.broadcast_to(np.asarray(element_size, float), (n,))[idx]
+            sub = law.initial_state(idx.size, stress=sig[idx], **kw)
             for key, arr in sub.items():
                 full = np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
                 full[idx] = arr

@@ -259,16 +259,20 @@ def _assemble(sig, kap, sig_n, de, kap_n, normals, nn6, weights, cohesion, eta_f
             # peak eta_f, where the inverse holds, when the plane can soften)
             if etah >= (ef if sp[1] > 0.0 else zef) * (1.0 - 1e-9):
                 return False, np.inf, changed, np.inf, np.inf
-            if tau <= tau_tiny or etah < zef * kn / (A + kn):
+            # in the last-resort attempt (wide hysteresis, _solve_substep) the law is shifted by the same
+            # band, kappa(etah - h_on zeta eta_f): continuous, and a plane that starts on its kink stays
+            # elastic under an increment too small to load it by more than the band
+            e = etah - (zef * h_on if h_on >= _H_ON_WIDE else 0.0)  # (the band of the last resort)
+            if tau <= tau_tiny or e < zef * kn / (A + kn):
                 active[a] = False
                 kap[a] = kn
                 continue
             active[a] = True
-            kap[a] = A * etah / (zef - etah)
+            kap[a] = A * e / (zef - e)
             dk = kap[a] - kn
             if dk < 0.0:
                 dk = 0.0
-            kprime = A * zef / ((zef - etah) * (zef - etah))  # d kappa / d etah
+            kprime = A * zef / ((zef - e) * (zef - e))  # d kappa / d etah
             g = 0.0
         else:
             dk, kprime, g = _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, sp)
@@ -563,12 +567,13 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     which resolves the active-set cycling of planes that sit exactly on their loading/unloading kink
     under a tiny increment. Returns (ok, iterations).
 
-    ``last_resort`` (the finest sub-step level only): if both fail, a third attempt with a wider
-    switch-on hysteresis, _H_ON_WIDE zeta eta_f instead of _H_ON. It resolves the case where the local
+    ``last_resort`` (the finest sub-step level only, where increments are smallest): if both fail, a
+    third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of _H_ON (h_wide below). It resolves the case where the local
     problem of non-associated multi-plane flow has no consistent active set for the increment (a
     plane loads when it is elastic and unloads when it is loading: the active-set loop cycles for
-    ever); the plane then stays elastic for this sub-step with an overstress below 1e-4 zeta eta_f
-    sigma_N, which the next increment removes as soon as it loads the plane by more.
+    ever); the plane then stays elastic for this sub-step with an overstress below h_wide zeta eta_f
+    sigma_N (the change of the ratio one sub-step makes: a first-order error), which the next
+    increment removes as soon as it loads the plane by more.
     """
     ok, its = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
@@ -581,16 +586,50 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     its += its2
     if ok or not last_resort:
         return ok, its
+    # the band: _H_ON_WIDE, or 1.5 x the largest change of a mobilised ratio the elastic trial makes, at
+    # most _H_ON_CAP (1 % of the strength: no plane overstressed by more stays elastic) (at
+    # low stress the plastic compliance of a plane, ~ (w/t)(A/eta_f)/sigma_N, dwarfs the elastic one and
+    # a tiny increment moves etah across the kink by more than _H_ON_WIDE)
+    h_wide = max(_H_ON_WIDE, min(1.5 * _trial_ratio_change(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial),
+                                 _H_ON_CAP))
     ok, its2 = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                 eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
-                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A, _H_ON_WIDE, sp)
+                                delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A, h_wide, sp)
     return ok, its + its2
+
+
+@njit(cache=True)
+def _ratio(sig, n0, n1, n2, c):
+    t0, t1, t2 = _traction(sig, n0, n1, n2)
+    tn = t0 * n0 + t1 * n1 + t2 * n2
+    if -tn <= 0.0:
+        return np.nan
+    ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
+    return (np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2) - c) / (-tn)
+
+
+@njit(cache=True)
+def _trial_ratio_change(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial):
+    """max_a |etah_a(elastic trial) - etah_a(sigma_n)| / (zeta eta_f,a) over the compressed planes."""
+    for i in range(6):
+        acc = sig_n[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        trial[i] = acc
+    big = 0.0
+    for a in range(normals.shape[0]):
+        n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
+        d = abs(_ratio(trial, n0, n1, n2, cohesion[a]) - _ratio(sig_n, n0, n1, n2, cohesion[a])) / (zeta * eta_f[a])
+        if d > big:  # (NaN, a plane in tension at either end, compares false)
+            big = d
+    return big
 
 
 # switch-on hysteresis of a strongly mobilised plane (overstress in units of zeta eta_f), see
 # _implicit_plane and _solve_substep
 _H_ON = 1e-7
 _H_ON_WIDE = 1e-4
+_H_ON_CAP = 1e-2
 
 
 @njit(cache=True)
@@ -753,7 +792,12 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     if p_trial >= 0.0:
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1, 0, True
-    for level in range(max_level + 1):
+    # levels 0..max_level with the normal active-set logic; if all fail, once more from the finest level
+    # down with the last-resort band (_solve_substep), whose error, the ratio change of one sub-step, is
+    # then as small as it can be
+    for attempt in range(2 * (max_level + 1)):
+        last_resort = attempt > max_level
+        level = 2 * max_level + 1 - attempt if last_resort else attempt
         m = 1 << level
         for i in range(6):
             sig_prev[i] = sig_n[i]
@@ -777,14 +821,15 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                      eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work,
                                      r, piv, delta, trial, tmp, pred, kap_it, bvec, dk_step, kap_try,
-                                     True, sp)
+                                     last_resort, sp)
             total_it += its
             if not ok:
                 failed = True
-                # how close to the apex the finest sub-stepping got before it stopped
-                s_last = 0.0
-                for i in range(6):
-                    s_last = max(s_last, abs(sig_prev[i]))
+                if level == max_level and not last_resort:
+                    # how close to the apex the finest sub-stepping got before it stopped
+                    s_last = 0.0
+                    for i in range(6):
+                        s_last = max(s_last, abs(sig_prev[i]))
                 break
             if want_tangent:
                 # B = S Dsig_{k-1} + I/m + sum_active (w/t)(SN - dil NN) (x) Dkap_{k-1,a}

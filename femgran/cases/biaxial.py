@@ -6,7 +6,11 @@ The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Smooth rigid
 the two vertical faces and is the in-situ stress (-p0 I).
 
 Imperfection: the left face is pushed inwards by ``imperfection * W`` in a smooth bump at mid-height
-(a geometric imperfection: every point carries the same material, so any material object works).
+(a geometric imperfection: every point carries the same material, so any material object works), and
+optionally (``weak_zone`` > 0, CPA materials) a material imperfection: the elements whose centre lies
+within 0.1 W of the point (0, ``weak_zone_height`` H) of the left face have eta0 lowered by that
+fraction. Placed off mid-height (default H/4) it selects one band out of the symmetric pair a
+mid-height imperfection triggers (the usual trigger of a band that crosses the specimen).
 
 Band inclination: the shear band is located from the increment of the deviatoric strain between the
 peak and the last converged step; its axis is the principal direction of the strain-weighted point cloud
@@ -68,7 +72,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
             linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
-            tol_accept: float | None = 1e-4):
+            tol_accept: float | None = 1e-4, weak_zone: float = 0.0, weak_zone_height: float = 0.25):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     Parameters
@@ -78,6 +82,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     width_m : W [m]; axial_strain : final axial strain (compression +); steps : nominal steps.
     resolution : elements across the width (2 x as many over the height); order : 1 or 2.
     imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
+    weak_zone : relative reduction of eta0 in the elements near (0, weak_zone_height H) (0: none;
+        needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
     tol : relative residual tolerance of the Newton iterations (1e-6, as for the footing: the plane
         active sets make the CPA response non-smooth at about 1e-7); tol_accept : see
         :class:`femgran.solver.SolverOptions` (after the peak of a softening law Newton may stall).
@@ -110,6 +116,12 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
     mat = make_material(material, alpha_deg, plane_strain=True)
     d = Discretisation(m, order, volumetric)
+    weak = check_positive("weak_zone", weak_zone, allow_zero=True)
+    if weak > 0:
+        yw = float(weak_zone_height)
+        if not 0.0 < yw < 1.0:
+            raise ValueError(f"weak_zone_height = {weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
+        mat = _with_weak_zone(mat, weak, m, d, W, yw * H)
     b = m.boundaries
     bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
     right = d.facet_scalar_dofs(b["right"])
@@ -137,7 +149,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
-              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
+              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp, "weak_zone": weak, "weak_zone_height": float(weak_zone_height),
               "volumetric": volumetric, "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat)}
     if out_dir is not None:
@@ -173,8 +185,29 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     return sol
 
 
+def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
+    """A Composite: ``mat`` everywhere but in the elements near (0, y0), where eta0 is (1 - weak) x."""
+    from femgran.composite import Composite
+    from material import CPAModel
+
+    if not isinstance(mat, CPAModel):
+        raise ValueError(f"weak_zone = {weak!r}: needs a CPA material (CPAModel, parameters or a preset), "
+                         f"got {type(mat).__name__}")
+    if weak >= 0.5:
+        raise ValueError(f"weak_zone = {weak!r}: allowed 0 <= weak_zone < 0.5")
+    centres = mesh.p[:, mesh.t].mean(axis=1)
+    h = np.sqrt(2 * W * W / mesh.t.shape[1])  # element size (H = 2 W)
+    inside = np.hypot(centres[0], centres[1] - y0) < 0.1 * W + 0.5 * h
+    weak_mat = CPAModel(mat.params.replace(eta0=mat.params.eta0 * (1 - weak)), rule=mat.rule, axes=mat.axes,
+                        regularise=mat.regularise)
+    weak_mat.replay_dir = mat.replay_dir
+    return Composite([mat, weak_mat], np.repeat(inside.astype(np.int64), d.nqp))
+
+
 def _regularisation(mat) -> str:
     p = getattr(mat, "params", None)
+    if p is None and hasattr(mat, "laws"):
+        p = getattr(mat.laws[0], "params", None)
     if p is not None and getattr(p, "softening_slip", 0.0) > 0:
         return f"crack band: softening slip scale {p.softening_slip:g} m x t / h (t = {p.t:g} m)"
     return "none (no softening in the material)"
