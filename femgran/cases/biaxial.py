@@ -13,9 +13,9 @@ fraction. Placed off mid-height (default H/4) it selects one band out of the sym
 mid-height imperfection triggers (the usual trigger of a band that crosses the specimen).
 
 Band inclination: the shear band is located from the increment of the deviatoric strain between the
-peak and the last converged step; its axis is the principal direction of the strain-weighted point cloud
-above half the maximum. ``band_angle_deg`` is the angle between that axis and the minor principal
-(lateral, x) stress direction, to compare with Coulomb 45 + phi/2, Roscoe 45 + psi/2 and Arthur
+peak and the last converged step (:func:`band_angle`: the orientation whose strips collect the most of
+it, the bump's own neighbourhood left out). ``band_angle_deg`` is the angle between the band and the
+minor principal (lateral, x) stress direction, to compare with Coulomb 45 + phi/2, Roscoe 45 + psi/2 and Arthur
 45 + (phi + psi)/4 (``reference_angles_deg``), phi and psi the peak mobilised friction and dilatancy
 angles from the global response: sin phi = (s1 - s3) / (s1 + s3), sin psi = -(d eps_v) / (d eps_1 - d eps_3)
 (compression +).
@@ -44,28 +44,45 @@ from femgran.solver import Dirichlet, NewtonSolver
 __all__ = ["biaxial", "band_angle"]
 
 
-def band_angle(points: np.ndarray, weights: np.ndarray, threshold: float = 0.5) -> tuple[float, bool]:
-    """Inclination of a band from the x axis [deg, 0..90] and whether the weights are localised.
+def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = None,
+               exclude: tuple[float, float, float] | None = None,
+               search: tuple[float, float] = (15.0, 80.0)) -> tuple[float, bool]:
+    """Inclination of the dominant band of a field, from the x axis [deg, 0..90], and whether it is one.
 
-    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment). ``localised``: the weights
-    are concentrated (max > 3 x median) in less than 30 % of the points forming an elongated cloud
-    (principal variance ratio > 10); otherwise the angle means nothing.
+    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment). A Radon-type search: for
+    orientation theta (0.5 deg steps, |angle from x| within ``search``: strips along the specimen's
+    faces, which the platens and free sides load, are not bands) the weights are summed in strips of ``width``
+    (default: 1/20 of the cloud's extent) parallel to theta; the band is the orientation whose fullest
+    strip holds the largest share of the total. Conjugate bands (an X) count by the steeper one's
+    |angle| from x: the answer folds theta into 0..90. ``exclude`` = (x, y, r): leave out the points
+    within r of (x, y) (an imperfection, whose local crush would otherwise dominate).
+    ``localised``: the fullest strip holds at least 2.5 x the share a uniform field would give it.
     """
-    w = np.asarray(weights, float)
+    x = np.asarray(points, float)
+    w = np.asarray(weights, float).copy()
+    if exclude is not None:
+        w[np.hypot(x[:, 0] - exclude[0], x[:, 1] - exclude[1]) < exclude[2]] = 0.0
     if not np.any(w > 0):
         return float("nan"), False
-    sel = w >= threshold * w.max()
-    x, ww = points[sel], w[sel]
-    xc = np.average(x, axis=0, weights=ww)
-    C = np.einsum("ni,nj,n->ij", x - xc, x - xc, ww) / ww.sum()
-    vals, vecs = np.linalg.eigh(C)
-    v = vecs[:, -1]
-    angle = np.degrees(np.arctan2(abs(v[1]), abs(v[0])))
-    # a band: concentrated (max > 3 x median), a small part of the points, and an elongated cloud
-    concentrated = bool(np.max(w) > 3 * np.median(w[w > 0]))
-    elongated = bool(vals[-1] > 10 * max(vals[0], 1e-300))
-    localised = concentrated and elongated and sel.mean() < 0.3
-    return float(angle), localised
+    extent = float(np.max(np.ptp(x, axis=0)))
+    b = extent / 20.0 if width is None else float(width)
+    deg = np.arange(0.0, 180.0, 0.5)
+    fold = np.where(deg <= 90.0, deg, 180.0 - deg)
+    thetas = np.radians(deg[(fold >= search[0]) & (fold <= search[1])])
+    best, best_theta, uniform = -1.0, 0.0, 0.0
+    c = x - x.mean(axis=0)
+    for t in thetas:
+        d = -np.sin(t) * c[:, 0] + np.cos(t) * c[:, 1]  # signed distance from a line at angle t
+        edges = np.arange(d.min(), d.max() + b, b)
+        sums = np.histogram(d, bins=edges, weights=w)[0]
+        counts = np.histogram(d, bins=edges)[0]
+        share = sums.max() / w.sum()
+        if share > best:
+            k = int(np.argmax(sums))
+            best, best_theta, uniform = share, t, counts[k] / max(counts.sum(), 1)
+    angle = float(np.degrees(best_theta))
+    angle = angle if angle <= 90.0 else 180.0 - angle
+    return angle, bool(best >= 2.5 * uniform)
 
 
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
@@ -170,7 +187,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     dstrain = np.asarray(sol.state["strain"]) - snaps[k].astype(float)
     dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
-    angle, localised = band_angle(xq, gamma)
+    h_el = np.sqrt(W * H / m.t.shape[1])
+    exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
+    angle, localised = band_angle(xq, gamma, width=max(2 * h_el, W / 10), exclude=exclude)
     sol.extra.update(params=params, band_angle_deg=angle, localised=localised, peak_friction_deg=phi,
                      peak_dilatancy_deg=psi, peak_q_kPa=float(q[k]),
                      reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
