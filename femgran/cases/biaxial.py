@@ -25,11 +25,12 @@ hardens to a plateau and no band forms. The material offers post-peak softening 
 ``softening_slip`` > 0, ``residual_ratio``; :class:`material.CPAParameters`) regularised by the band
 thickness t with the crack-band method: the solver passes each point's element size h and the slip
 scale of the softening becomes ``softening_slip t / h``, so the energy dissipated per unit band area
-does not depend on h. Known limit: with softening the runs stop where the first planes pass their
-peak (the local problem of a plane crossing kappa* within a step has no robust solution yet: the
-Gauss-point tests pass, the FE biaxial run stops at about the peak load), so the three-mesh post-peak
-comparison is not shown. ``localised`` says whether the strain increment is concentrated
-(max / median > 3). ``params["regularisation"]`` records which regularisation the material used.
+does not depend on h (``CPAModel(..., regularise=False)`` gives the mesh-dependent reference). Past the
+peak, Newton steps may stall with a residual cycling between 1e-6 and 1e-4 (points whose planes switch
+between loading and unloading from one iteration to the next); such steps are accepted below
+``tol_accept`` (1e-4) and the history's ``residual`` column shows them. ``examples/fe_04_biaxial_meshes.py``
+runs three meshes with and without the regularisation. ``localised`` says whether the strain increment
+concentrates in a band (:func:`band_angle`). ``params["regularisation"]`` records the regularisation used.
 """
 
 from __future__ import annotations
