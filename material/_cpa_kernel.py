@@ -586,12 +586,13 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     its += its2
     if ok or not last_resort:
         return ok, its
-    # the band: _H_ON_WIDE, or 1.5 x the largest change of a mobilised ratio the elastic trial makes, at
-    # most _H_ON_CAP (1 % of the strength: no plane overstressed by more stays elastic) (at
-    # low stress the plastic compliance of a plane, ~ (w/t)(A/eta_f)/sigma_N, dwarfs the elastic one and
-    # a tiny increment moves etah across the kink by more than _H_ON_WIDE)
-    h_wide = max(_H_ON_WIDE, min(1.5 * _trial_ratio_change(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial),
-                                 _H_ON_CAP))
+    # the band: _H_ON_WIDE, or 1.5 x the largest change of a mobilised ratio the elastic trial makes, or
+    # just above the overstress a plane already carries from an earlier last resort, at most _H_ON_CAP
+    # (1 % of the strength: no plane overstressed by more stays elastic). At low stress the plastic
+    # compliance of a plane, ~ (w/t)(A/eta_f)/sigma_N, dwarfs the elastic one and a tiny increment moves
+    # etah across the kink by more than _H_ON_WIDE.
+    h_wide = max(_H_ON_WIDE, min(_last_resort_band(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial, kap_n, A,
+                                                   sp), _H_ON_CAP))
     ok, its2 = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                 eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
                                 delta, trial, tmp, pred, kap, bvec, dk_step, kap_try, A, h_wide, sp)
@@ -609,8 +610,9 @@ def _ratio(sig, n0, n1, n2, c):
 
 
 @njit(cache=True)
-def _trial_ratio_change(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial):
-    """max_a |etah_a(elastic trial) - etah_a(sigma_n)| / (zeta eta_f,a) over the compressed planes."""
+def _last_resort_band(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial, kap_n, A, sp):
+    """max over the compressed planes of 1.5 |etah_a(elastic trial) - etah_a(sigma_n)| and
+    1.01 (etah_a(sigma_n) - eta(kappa_n,a)), both over zeta eta_f,a."""
     for i in range(6):
         acc = sig_n[i]
         for j in range(6):
@@ -619,9 +621,15 @@ def _trial_ratio_change(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial)
     big = 0.0
     for a in range(normals.shape[0]):
         n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
-        d = abs(_ratio(trial, n0, n1, n2, cohesion[a]) - _ratio(sig_n, n0, n1, n2, cohesion[a])) / (zeta * eta_f[a])
-        if d > big:  # (NaN, a plane in tension at either end, compares false)
+        zef = zeta * eta_f[a]
+        e_n = _ratio(sig_n, n0, n1, n2, cohesion[a])
+        d = 1.5 * abs(_ratio(trial, n0, n1, n2, cohesion[a]) - e_n) / zef
+        over = 1.01 * (e_n - _hardening(kap_n[a], kap_n[a], eta_f[a], zef, A, sp)[0]) / zef
+        # (NaN, a plane in tension at either end, compares false)
+        if d > big:
             big = d
+        if over > big:
+            big = over
     return big
 
 
