@@ -30,7 +30,14 @@ Decisions not fixed by the thesis (documented here, MODEL.md asks for it)
   and the elastic trial stress has no compression left (mean stress >= 0), the point goes to the apex,
   stress free; the misfit becomes plastic opening, kappa is unchanged, and the tangent is
   ``cutoff_stiffness`` times the elastic one (default 1e-6, so that a structure stays solvable).
-  ``state["tension_cutoff"]`` flags such points.
+  A point that no sub-stepping can integrate also goes to the apex when sub-stepping ran into it, when
+  the trial stress pulls a plane apart, or when its stress is within one increment's elastic stress of
+  zero or below 1e-4 of the elastic stiffness (0.9 kPa for the presets: practically stress free,
+  typically at the free surface beside a footing). ``state["tension_cutoff"]`` flags such points.
+* Active-set cycling: the local problem of non-associated flow on many planes can have no consistent
+  active set for an increment (a plane loads when elastic and unloads when loading). When every
+  normal attempt fails, a last resort lets such a plane stay elastic with an overstress of at most
+  1 % of its strength (the band of :func:`material._cpa_kernel._solve_substep`).
 * Elasticity: isotropic Hooke (E, nu), the macroscopic limit of the plane-based form (2.15)
   normalised as in MODEL.md.
 """
