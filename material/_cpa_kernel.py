@@ -314,9 +314,9 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, s
     code = 0.0
     if update_active != 0:
         # switches with a small hysteresis (1e-12 in kappa/A to switch off, h_on zeta eta_f of overstress
-        # to switch on, h_on = _H_ON = 1e-7 normally), so that a plane that sits on its loading/unloading kink under a tiny increment
-        # cannot flip at every iteration (the classical cycling of multi-surface return mappings); the
-        # overstress it may keep is physically negligible
+        # to switch on, h_on = _H_ON = 1e-7 normally), so that a plane that sits on its loading/unloading
+        # kink under a tiny increment cannot flip at every iteration (the classical cycling of
+        # multi-surface return mappings); the overstress it may keep is physically negligible
         if active[a]:
             if kap[a] < kn - 1e-12 * (A + kn):
                 if update_active == 1:
@@ -324,7 +324,7 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, s
                     kap[a] = kn
                     return _SWITCHED, 0.0, 0.0
                 code = _SWITCH_DUE
-        elif etah > _hardening(kn, kn, ef, zef, A, sp)[0] + zef * h_on:  # loading beyond the level reached (2.16)
+        elif etah > _hardening(kn, ef, zef, A, sp)[0] + zef * h_on:  # loading beyond the level reached (2.16)
             if update_active == 1:
                 active[a] = True
                 kap[a] = kn
@@ -338,14 +338,14 @@ def _implicit_plane(a, update_active, active, kap, kn, etah, ef, zef, A, h_on, s
         # an iterate may take kappa below kappa_n (the plane is about to unload; the next active-set
         # update switches it off) but must keep A + kappa > 0 for the hardening curve to make sense
         return _INADMISSIBLE, 0.0, 0.0
-    eta, deta = _hardening(k, kn, ef, zef, A, sp)
+    eta, deta = _hardening(k, ef, zef, A, sp)
     if deta == 0.0:
         return _INADMISSIBLE, 0.0, 0.0
     return code, 1.0 / deta, etah - eta  # hardening law (2.16) residual
 
 
 @njit(cache=True, inline="always")
-def _hardening(k, kn, ef, zef, A, sp):
+def _hardening(k, ef, zef, A, sp):
     """eta(kappa) and d eta / d kappa of a plane: the hyperbola (2.16) up to kappa* = sp[0], then
     (sp[1] = softening slip scale of this point > 0) the hyperbolic decay to sp[2] eta_f,
     eta = eta_f (r + (1 - r) / (1 + (kappa - kappa*) / s)). Both are proportional to eta_f.
@@ -567,13 +567,14 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     which resolves the active-set cycling of planes that sit exactly on their loading/unloading kink
     under a tiny increment. Returns (ok, iterations).
 
-    ``last_resort`` (the finest sub-step level only, where increments are smallest): if both fail, a
-    third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of _H_ON (h_wide below). It resolves the case where the local
-    problem of non-associated multi-plane flow has no consistent active set for the increment (a
-    plane loads when it is elastic and unloads when it is loading: the active-set loop cycles for
-    ever); the plane then stays elastic for this sub-step with an overstress below h_wide zeta eta_f
-    sigma_N (the change of the ratio one sub-step makes: a first-order error), which the next
-    increment removes as soon as it loads the plane by more.
+    ``last_resort`` (after every normal attempt at every sub-step level failed, from the finest level
+    down): if both fail, a third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of
+    _H_ON (h_wide below). It resolves the case where the local problem of non-associated multi-plane
+    flow has no consistent active set for the increment (a plane loads when it is elastic and unloads
+    when it is loading: the active-set loop cycles for ever); the plane then stays elastic for this
+    sub-step with an overstress below h_wide zeta eta_f sigma_N (the change of the ratio one sub-step
+    makes: a first-order error, at most 1 %), which the next increment removes as soon as it loads the
+    plane by more.
     """
     ok, its = _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
                                eta_c_ratio, comp, stiff, tol, tol_g, maxit, sig, J, active, dkap, work, r, piv,
@@ -624,7 +625,7 @@ def _last_resort_band(sig_n, de, stiff, normals, cohesion, eta_f, zeta, trial, k
         zef = zeta * eta_f[a]
         e_n = _ratio(sig_n, n0, n1, n2, cohesion[a])
         d = 1.5 * abs(_ratio(trial, n0, n1, n2, cohesion[a]) - e_n) / zef
-        over = 1.01 * (e_n - _hardening(kap_n[a], kap_n[a], eta_f[a], zef, A, sp)[0]) / zef
+        over = 1.01 * (e_n - _hardening(kap_n[a], eta_f[a], zef, A, sp)[0]) / zef
         # (NaN, a plane in tension at either end, compares false)
         if d > big:
             big = d
@@ -682,7 +683,7 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
             ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
             etah = (np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2) - cohesion[a]) / sN
             zef = zeta * eta_f[a]
-            if etah > _hardening(kap_n[a], kap_n[a], eta_f[a], zef, A, sp)[0]:
+            if etah > _hardening(kap_n[a], eta_f[a], zef, A, sp)[0]:
                 if sp[1] > 0.0 and kap_n[a] >= sp[0]:
                     kap[a] = kap_n[a]  # past its peak: loading, from kappa_n
                 else:
