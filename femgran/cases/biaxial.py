@@ -167,8 +167,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
-              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp, "weak_zone": weak, "weak_zone_height": float(weak_zone_height),
-              "volumetric": volumetric, "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
+              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
+              "weak_zone": weak, "weak_zone_height": float(weak_zone_height), "volumetric": volumetric,
+              "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat)}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters

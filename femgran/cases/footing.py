@@ -152,7 +152,8 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
               "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
-              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
+              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "tol": tol,
+              "tol_accept": tol_accept, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y (up)"}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
