@@ -44,6 +44,17 @@ class Composite:
         parts = ", ".join(f"{law!r} on {idx.size} points" for law, idx in zip(self.laws, self.index))
         return f"Composite({parts})"
 
+    @property
+    def replay_dir(self):
+        """The replay folder of the first law that keeps one (None if none does)."""
+        return next((law.replay_dir for law in self.laws if getattr(law, "replay_dir", None) is not None), None)
+
+    @replay_dir.setter
+    def replay_dir(self, path):
+        for law in self.laws:
+            if hasattr(law, "replay_dir"):
+                law.replay_dir = path
+
     def _n(self, n):
         if int(n) != self.assignment.size:
             raise ValueError(f"Composite: {n} points, but the assignment has {self.assignment.size}")
@@ -51,16 +62,14 @@ class Composite:
 
     def initial_state(self, n_points: int, stress=None, element_size=None):
         """States of every law on its points; ``element_size`` (N,) reaches the laws that take it."""
-        import inspect
+        from femgran.state import initial_state_of
 
         n = self._n(n_points)
         sig = as_stress_batch(stress, n)
+        h = None if element_size is None else np.broadcast_to(np.asarray(element_size, float), (n,))
         state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
-            kw = {}
-            if element_size is not None and "element_size" in inspect.signature(law.initial_state).parameters:
-                kw["element_size"] = np.broadcast_to(np.asarray(element_size, float), (n,))[idx]
-            sub = law.initial_state(idx.size, stress=sig[idx], **kw)
+            sub = initial_state_of(law, idx.size, sig[idx], None if h is None else h[idx])
             for key, arr in sub.items():
                 full = np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
                 full[idx] = arr

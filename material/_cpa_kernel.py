@@ -600,8 +600,9 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     return ok, its + its2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ratio(sig, n0, n1, n2, c):
+    """Mobilised ratio (tau - c) / sigma_N of the plane n at the stress sig; NaN unless compressed."""
     t0, t1, t2 = _traction(sig, n0, n1, n2)
     tn = t0 * n0 + t1 * n1 + t2 * n2
     if -tn <= 0.0:
@@ -673,15 +674,10 @@ def _solve_substep_k(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, z
         for a in range(M):
             kap[a] = kap_n[a]
             active[a] = False
-            n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
-            t0, t1, t2 = _traction(sig, n0, n1, n2)
-            tn = t0 * n0 + t1 * n1 + t2 * n2
-            sN = -tn
-            if sN <= 0.0:
+            etah = _ratio(sig, normals[a, 0], normals[a, 1], normals[a, 2], cohesion[a])
+            if not etah == etah:  # NaN: a plane in tension
                 admissible = False
                 break
-            ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
-            etah = (np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2) - cohesion[a]) / sN
             zef = zeta * eta_f[a]
             if etah > _hardening(kap_n[a], eta_f[a], zef, A, sp)[0]:
                 if sp[1] > 0.0 and kap_n[a] >= sp[0]:
@@ -1046,16 +1042,9 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
             _plane_strengths(nn6, om6, vecs[16], coeffs, eta0, bufs_f[0, :M], bufs_f[1, :M])
             best = 0.0
             for a in range(M):
-                n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
-                t0, t1, t2 = _traction(sig_out[p], n0, n1, n2)
-                tn = t0 * n0 + t1 * n1 + t2 * n2
-                sN = -tn
-                if sN > 0.0:
-                    ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
-                    tau = np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2)
-                    v = (tau - cohesion[a]) / sN / bufs_f[0, a]
-                    if v > best:
-                        best = v
+                v = _ratio(sig_out[p], normals[a, 0], normals[a, 1], normals[a, 2], cohesion[a]) / bufs_f[0, a]
+                if v > best:  # (NaN, a plane in tension, compares false)
+                    best = v
             mobilised[p] = best
 
 

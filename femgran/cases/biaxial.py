@@ -189,7 +189,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     dstrain = np.asarray(sol.state["strain"]) - snaps[k].astype(float)
     dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
-    h_el = np.sqrt(W * H / m.t.shape[1])
+    h_el = float(d.element_size().max())
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
     angle, localised = band_angle(xq, gamma, width=max(2 * h_el, W / 10), exclude=exclude)
     sol.extra.update(params=params, band_angle_deg=angle, localised=localised, peak_friction_deg=phi,
@@ -217,11 +217,10 @@ def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
     if weak >= 0.5:
         raise ValueError(f"weak_zone = {weak!r}: allowed 0 <= weak_zone < 0.5")
     centres = mesh.p[:, mesh.t].mean(axis=1)
-    h = np.sqrt(2 * W * W / mesh.t.shape[1])  # element size (H = 2 W)
+    h = d.element_size()[:: d.nqp]
     inside = np.hypot(centres[0], centres[1] - y0) < 0.1 * W + 0.5 * h
     weak_mat = CPAModel(mat.params.replace(eta0=mat.params.eta0 * (1 - weak)), rule=mat.rule, axes=mat.axes,
-                        regularise=mat.regularise)
-    weak_mat.replay_dir = mat.replay_dir
+                        regularise=mat.regularise, replay_dir=mat.replay_dir)
     return Composite([mat, weak_mat], np.repeat(inside.astype(np.int64), d.nqp))
 
 

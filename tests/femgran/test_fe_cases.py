@@ -208,3 +208,19 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
     assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_vs_eps_a.png").is_file()
     assert main(["footing", "--law", "von_mises", "--unit-weight", "0", "--resolution", "1", "--steps", "2",
                  "--settlement", "0.002", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0
+
+
+def test_weak_zone_makes_a_composite_that_keeps_failed_points(tmp_path):
+    from femgran.cases.common import keep_failed_points
+    from femgran.composite import Composite
+
+    law = material.CPAModel("ottawa_c109")
+    weak = material.CPAModel(law.params.replace(eta0=0.8))
+    comp = Composite([law, weak], np.array([0, 1, 1]))
+    keep_failed_points(comp, tmp_path)
+    assert law.replay_dir == weak.replay_dir == comp.replay_dir == tmp_path / "failed_points"
+    sol = biaxial(None, 100.0, axial_strain=0.004, steps=2, resolution=4, weak_zone=0.05, out=tmp_path / "bx",
+                  plots=False)
+    assert sol.completed and sol.extra["params"]["weak_zone"] == 0.05
+    with pytest.raises(ValueError, match="weak_zone = 0.05: needs a CPA material"):
+        biaxial(material.LinearElastic(6000.0, 0.3), weak_zone=0.05, steps=1, resolution=4)
