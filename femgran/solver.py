@@ -84,6 +84,10 @@ class SolverOptions:
     (``max_iter`` reached, e.g. cycling among material active sets) with a residual <= tol_accept is
     accepted instead of cut back; the history column ``residual`` shows its value, so such steps stay
     visible.
+    stall_iter : a try ends early when the residual has not reached a new minimum for this many
+    iterations (Newton cycling over the kinks of a piecewise-smooth material response, e.g. planes
+    crossing their peak); it then ends as a try that reached ``max_iter`` does, except that the best
+    iterate, not the last, is the one accepted below ``tol_accept``.
     """
 
     tol: float = 1e-8
@@ -98,6 +102,7 @@ class SolverOptions:
     linear_solver: str = "auto"
     krylov_tol: float = 1e-10
     tol_accept: float | None = None
+    stall_iter: int = 6
 
     def __post_init__(self):
         if self.linear_solver not in LINEAR_SOLVERS:
@@ -108,8 +113,11 @@ class SolverOptions:
             raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
         if self.tol_accept is not None and not (self.tol <= self.tol_accept < 1):
             raise ValueError(f"tol_accept = {self.tol_accept!r}: allowed None or tol <= tol_accept < 1")
+        if int(self.stall_iter) < 2:
+            raise ValueError(f"stall_iter = {self.stall_iter!r}: allowed an integer >= 2")
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
-            raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: need max_iter >= 1, max_cuts >= 0")
+            raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: "
+                             "need max_iter >= 1, max_cuts >= 0")
 
 
 class History:
@@ -367,6 +375,8 @@ class NewtonSolver:
         r, tangent = self._evaluate(du, t_new)
         rf, ref = self._norms(r, t_new)
         residuals = [rf / ref]
+        best, best_du, since_best = residuals[0], du, 0
+        it = 0
         for it in range(1, opt.max_iter + 1):
             if residuals[-1] <= opt.tol:
                 return du, it - 1, residuals
@@ -393,11 +403,22 @@ class NewtonSolver:
             residuals.append(rf / ref)
             if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
                 raise _StepFailure("Newton diverging")
-        if residuals[-1] <= (opt.tol if opt.tol_accept is None else opt.tol_accept):
-            return du, opt.max_iter, residuals
+            if residuals[-1] < best:
+                best, best_du, since_best = residuals[-1], du, 0
+            else:
+                since_best += 1
+                if since_best >= opt.stall_iter and residuals[-1] > opt.tol:
+                    break  # cycling: no new minimum for stall_iter iterations
+        if residuals[-1] <= opt.tol:
+            return du, it, residuals
+        if opt.tol_accept is not None and best <= opt.tol_accept:
+            if best_du is not du:
+                self._evaluate(best_du, t_new)  # the material's trial state of the accepted iterate
+                residuals.append(best)
+            return best_du, it, residuals
         tail = ", ".join(f"{x:.1e}" for x in residuals[-6:])
-        raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e}; "
-                           f"last residuals {tail})")
+        what = f"stalled after {it} iterations" if it < opt.max_iter else f"no convergence in {it} iterations"
+        raise _StepFailure(f"{what} (residual {residuals[-1]:.2e}; last residuals {tail})")
 
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,

@@ -274,17 +274,18 @@ def test_element_size_reaches_a_regularised_material():
 
 
 class _StiffTangent:
-    """Test double: a law whose tangent is 1.5 x the true one, so Newton converges only linearly."""
+    """Test double: a law whose tangent is ``factor`` x the true one (1.5: Newton converges only
+    linearly; 0.5: every Newton correction overshoots by exactly its own size, a 2-cycle)."""
 
-    def __init__(self, inner):
-        self.inner = inner
+    def __init__(self, inner, factor=1.5):
+        self.inner, self.factor = inner, factor
 
     def initial_state(self, n, stress=None):
         return self.inner.initial_state(n, stress=stress)
 
     def update(self, d_strain, stress, state):
         s, st, D = self.inner.update(d_strain, stress, state)
-        return s, st, 1.5 * D
+        return s, st, self.factor * D
 
 
 def test_stalled_steps_are_accepted_below_tol_accept_and_only_there():
@@ -299,3 +300,24 @@ def test_stalled_steps_are_accepted_below_tol_accept_and_only_there():
     assert np.all(res <= 0.05) and np.any(res > 1e-8)  # accepted above tol, and the history shows it
     with pytest.raises(ValueError, match="tol_accept"):
         SolverOptions(tol=1e-6, tol_accept=1e-8)
+
+
+def test_a_cycling_newton_stops_after_stall_iter_and_keeps_its_best_iterate():
+    d, bcs = _plastic_cube()
+    mat = _StiffTangent(material.LinearElastic(1e4, 0.3), factor=0.5)
+    opts = dict(max_iter=25, max_cuts=0, line_search=0, predictor="none")
+    stuck = NewtonSolver(d, mat, bcs, options=SolverOptions(stall_iter=4, **opts)).run(1)
+    # the best residual comes at iteration 1, then 4 iterations bring no new minimum
+    assert not stuck.completed and "stalled after 5 iterations" in stuck.stop_reason
+    sol = NewtonSolver(d, mat, bcs, options=SolverOptions(stall_iter=4, tol_accept=0.95, **opts)).run(1)
+    assert sol.completed and sol.history["iterations"][1] == 5
+    best = min(sol.residuals[0][:-1])
+    assert sol.residuals[0][-1] == best  # the accepted residual is the best one seen, and is recorded
+    # the committed state is that of the accepted iterate: its residual is the reported one
+    solver = NewtonSolver(d, mat, bcs, options=SolverOptions(stall_iter=4, tol_accept=0.95, **opts))
+    solver.run(1)
+    r = d.internal_force(solver.points.stress) - solver.external(1.0)
+    rf, ref = solver._norms(r, 1.0)
+    assert rf / ref == pytest.approx(best, rel=1e-9)
+    with pytest.raises(ValueError, match="stall_iter"):
+        SolverOptions(stall_iter=1)
