@@ -87,7 +87,8 @@ class SolverOptions:
     stall_iter : a try ends early when the residual has not reached a new minimum for this many
     iterations (Newton cycling over the kinks of a piecewise-smooth material response, e.g. planes
     crossing their peak); it then ends as a try that reached ``max_iter`` does, except that the best
-    iterate, not the last, is the one accepted below ``tol_accept``.
+    iterate, not the last, is the one accepted below ``tol_accept``. The step size regrows after an
+    accepted stalled step as after an easy one (``easy_iter``): smaller steps do not remove such kinks.
     """
 
     tol: float = 1e-8
@@ -297,6 +298,7 @@ class NewtonSolver:
         self._near_nullspace = None
         self._committed_tangent = None
         self.linear = None  # LinearSolver, made at the first solve
+        self._accepted_stalled = False  # the last step ended by a stall accepted below tol_accept
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -368,6 +370,7 @@ class NewtonSolver:
     def step(self, t_new: float):
         """Try one step to load factor t_new from the committed state. Returns (du, iterations, residuals)."""
         opt = self.options
+        self._accepted_stalled = False
         du = np.zeros(self.disc.ndofs)
         du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
         if opt.predictor == "tangent":
@@ -412,6 +415,7 @@ class NewtonSolver:
         if residuals[-1] <= opt.tol:
             return du, it, residuals
         if opt.tol_accept is not None and best <= opt.tol_accept:
+            self._accepted_stalled = True
             if best_du is not du:
                 self._evaluate(best_du, t_new)  # the material's trial state of the accepted iterate
                 residuals.append(best)
@@ -484,7 +488,9 @@ class NewtonSolver:
                 bar.update(dt)
                 bar.set_postfix_str(f"it={iters} res={residuals[-1]:.1e} cuts={cuts}")
             cuts = 0
-            if not fixed_steps and iters <= opt.easy_iter:
+            # regrow after an easy step, and after a stalled one accepted below tol_accept: its cycling
+            # comes from kinks of the material response, which smaller steps do not remove
+            if not fixed_steps and (iters <= opt.easy_iter or self._accepted_stalled):
                 dt = min(dt * opt.grow, dt_max)
         else:
             completed, reason = True, f"reached t = {t_end:g}"
