@@ -90,7 +90,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
             linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
-            tol_accept: float | None = 1e-4, weak_zone: float = 0.0, weak_zone_height: float = 0.25):
+            tol_accept: float | None = 1e-4, weak_zone: float = 0.0, weak_zone_height: float = 0.25,
+            platens: str = "smooth"):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     Parameters
@@ -102,6 +103,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
     weak_zone : relative reduction of eta0 in the elements near (0, weak_zone_height H) (0: none;
         needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
+    platens : "smooth" (the default: the end faces slide freely) or "rough" (no lateral displacement
+        of the end faces).
     tol : relative residual tolerance of the Newton iterations (1e-6, as for the footing: the plane
         active sets make the CPA response non-smooth at about 1e-7); tol_accept : see
         :class:`femgran.solver.SolverOptions` (after the peak of a softening law Newton may stall).
@@ -121,6 +124,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     imp = check_positive("imperfection", imperfection, allow_zero=True)
     if imp >= 0.2:
         raise ValueError(f"imperfection = {imperfection!r}: allowed 0 <= imperfection < 0.2")
+    if platens not in ("smooth", "rough"):
+        raise ValueError(f"platens = {platens!r}: allowed 'smooth' or 'rough'")
     n = int(resolution)
     if n < 2:
         raise ValueError(f"resolution = {resolution!r}: must be >= 2")
@@ -144,9 +149,14 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
     right = d.facet_scalar_dofs(b["right"])
     left = d.facet_scalar_dofs(left_facets)
-    bcs = [Dirichlet(d.vector_dofs(bot, [1]), 0.0, name="bottom"),
-           Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
-           Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
+    if platens == "smooth":  # u_y only, and u_x = 0 at the corner (0, 0) against rigid-body drift
+        bcs = [Dirichlet(d.vector_dofs(bot, [1]), 0.0, name="bottom"),
+               Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
+               Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
+    else:  # rough: the platens hold the end faces' lateral displacement too
+        bcs = [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0, name="bottom"),
+               Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
+               Dirichlet(d.vector_dofs(top, [0]), 0.0)]
     f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
                           options=solver_options(linear_solver, tol=check_positive("tol", tol), tol_accept=tol_accept))
@@ -170,7 +180,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
               "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
               "weak_zone": weak, "weak_zone_height": float(weak_zone_height), "volumetric": volumetric,
               "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
-              "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat)}
+              "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat), "platens": platens}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 

@@ -98,6 +98,21 @@ def test_biaxial_runs_and_reports_the_angles(tmp_path):
     assert (tmp_path / "bx" / "summary.json").is_file() and (tmp_path / "bx" / "biaxial.pvd").is_file()
 
 
+
+def test_rough_platens_hold_the_end_faces_and_barrel_the_specimen():
+    mat = material.LinearElastic(3e4, 0.3)
+    smooth = biaxial(mat, 100.0, axial_strain=0.01, steps=1, resolution=4, imperfection=0.0, plots=False)
+    rough = biaxial(mat, 100.0, axial_strain=0.01, steps=1, resolution=4, imperfection=0.0, platens="rough",
+                    plots=False)
+    assert rough.extra["params"]["platens"] == "rough"
+    # the held ends stiffen the specimen (more load, less mean lateral expansion than the homogeneous
+    # smooth-platen specimen, whose q is E' eps_a: 3e4 / (1 - 0.09) * 0.01 = 330 kPa)
+    assert smooth.history["q_kPa"][-1] == pytest.approx(3e4 / (1 - 0.09) * 0.01, rel=1e-6)
+    assert rough.history["q_kPa"][-1] > 1.02 * smooth.history["q_kPa"][-1]
+    assert abs(rough.history["eps_lateral"][-1]) < abs(smooth.history["eps_lateral"][-1])
+    with pytest.raises(ValueError, match="platens = 'sticky': allowed 'smooth' or 'rough'"):
+        biaxial(mat, platens="sticky", steps=1, resolution=4)
+
 def _write(path, text):
     path.write_text(text)
     return path
