@@ -2,19 +2,31 @@
 
 CPA ``ottawa_c109`` with the post-peak softening switched on (zeta = 1.05: a plane reaches eta_f at
 kappa* = A / (zeta - 1); beyond it eta decays to 0.65 eta_f with the slip scale ``softening_slip``),
-p0 = 100 kPa, a 2 % geometric imperfection, Q1 B-bar elements with 8, 12 and 16 elements across the
-50 mm width. Each mesh runs twice: regularised (the softening slip scale of a point is
-softening_slip t / h, the band thickness t = 6 mm smeared over the element size h: crack band) and
-unregularised (every element softens as if it were one band thickness wide). Prints the peak friction
-and dilatancy angles, the measured band angle (or that no band formed) with the Coulomb / Roscoe /
-Arthur angles, and the post-peak drop of q; writes ``summary.csv`` and one plot of the six curves.
+p0 = 100 kPa, a weak zone (eta0 10 % lower) at the bottom-left corner as the trigger, no geometric
+imperfection, Q1 B-bar elements with 8, 12 and 16 elements across the 50 mm width. Each mesh runs
+twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
+t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
+it were one band thickness wide).
 
-    python examples/fe_04_biaxial_meshes.py [--quick] [--softening-slip 0.05]
+Stiffness. The study uses E = 60 MPa (a dense sand; ``--youngs-modulus``), not the thesis's 6 MPa: a
+band that softens over a slip s releases the elastic energy of the whole specimen, and the post-peak
+path can be followed under displacement control only while the band's softening stiffness, about
+(1 - r) q_peak / s, stays below the specimen's elastic stiffness E' / H (no snap-back). With
+E = 6 MPa that needs s of 0.15 m or more, i.e. hardly any softening; with 60 MPa, s = 0.03 m follows.
+The element itself must not snap back either (crack band: h below a limit that grows with s).
+
+Prints, per run, the peak q, friction and dilatancy angles, the band angle (or that no band formed)
+with the Coulomb / Roscoe / Arthur angles, q at two post-peak strains; writes ``summary.csv`` and a plot
+of all curves. Runs can be split over processes (``--resolutions 16 --variants unregularised``): the
+summary and the plot collect every run folder found under ``--out``.
+
+    python examples/fe_04_biaxial_meshes.py [--quick] [--resolutions 8 12 16] [--variants ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import numpy as np
@@ -23,68 +35,113 @@ from femgran.cases import biaxial
 from femgran.cases.common import axes_plane_strain
 from material import CPAModel, load_preset
 
+VARIANTS = ("regularised", "unregularised")
+POST_PEAK_STRAINS = (0.045, 0.06)  # axial strains at which the post-peak q of the meshes is compared
+
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="meshes 4 and 6, regularised only")
+    ap.add_argument("--quick", action="store_true", help="mesh 4, regularised only, to the peak (3 %% strain)")
     ap.add_argument("--out", default="out/fe_04_biaxial")
-    ap.add_argument("--softening-slip", type=float, default=0.05, help="slip scale of the softening [m]")
+    ap.add_argument("--resolutions", type=int, nargs="+", default=[8, 12, 16], help="elements across the width")
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
+    ap.add_argument("--softening-slip", type=float, default=0.03, help="slip scale of the softening [m]")
+    ap.add_argument("--youngs-modulus", type=float, default=60000.0, help="E [kPa]")
+    ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
+    ap.add_argument("--axial-strain", type=float, default=0.06)
+    ap.add_argument("--steps", type=int, default=60, help="nominal load steps")
     args = ap.parse_args(argv)
-    resolutions, variants = ((4, 6), (True,)) if args.quick else ((8, 12, 16), (True, False))
-    params = load_preset("ottawa_c109").replace(zeta=1.05, softening_slip=args.softening_slip, residual_ratio=0.65)
+    if args.quick:
+        args.resolutions, args.variants, args.axial_strain, args.steps = [4], ["regularised"], 0.03, 10
+    params = load_preset("ottawa_c109").replace(E=args.youngs_modulus, zeta=1.05,
+                                                softening_slip=args.softening_slip, residual_ratio=0.65)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     sols = {}
-    with open(out / "summary.csv", "w") as f:
-        f.write("resolution,regularised,element_size_mm,peak_q_kPa,final_q_kPa,final_eps_a,peak_phi_deg,"
-                "peak_psi_deg,localised,band_angle_deg,coulomb_deg,roscoe_deg,arthur_deg,completed\n")
-        for reg in variants:
-            for n in resolutions:
-                model = CPAModel(params, axes=axes_plane_strain(0.0), regularise=reg)
-                tag = f"resolution_{n}" + ("" if reg else "_unregularised")
-                sol = biaxial(model, 100.0, 0.0, axial_strain=0.05 if args.quick else 0.12,
-                              steps=10 if args.quick else 40, resolution=n, out=out / tag)
-                sols[(n, reg)] = sol
-                ref = sol.reference_angles_deg
-                q = sol.history["q_kPa"]
-                band = f"band at {sol.band_angle_deg:.1f} deg" if sol.localised else "no localised band"
-                print(f"{tag}: peak q {sol.peak_q_kPa:.1f} kPa, final {q[-1]:.1f} kPa; peak phi "
-                      f"{sol.peak_friction_deg:.1f}, psi {sol.peak_dilatancy_deg:.1f} deg; {band}; Coulomb "
-                      f"{ref['coulomb']:.1f}, Roscoe {ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} [{sol.stop_reason}]")
-                f.write(f"{n},{int(reg)},{1e3 * 0.05 / n:.3g},{sol.peak_q_kPa:.6g},{q[-1]:.6g},"
-                        f"{sol.history['eps_a'][-1]:.6g},{sol.peak_friction_deg:.4g},{sol.peak_dilatancy_deg:.4g},"
-                        f"{int(sol.localised)},{sol.band_angle_deg:.4g},{ref['coulomb']:.4g},{ref['roscoe']:.4g},"
-                        f"{ref['arthur']:.4g},{int(sol.completed)}\n")
-                f.flush()
-    _plot(sols, out / "q_vs_eps_a_meshes.png")
+    for variant in args.variants:
+        for n in args.resolutions:
+            model = CPAModel(params, axes=axes_plane_strain(0.0), regularise=variant == "regularised")
+            tag = f"resolution_{n}" + ("" if variant == "regularised" else "_unregularised")
+            sol = biaxial(model, 100.0, 0.0, axial_strain=args.axial_strain, steps=args.steps, resolution=n,
+                          imperfection=0.0, weak_zone=0.1, weak_zone_height=0.01, platens=args.platens,
+                          out=out / tag)
+            sols[(n, variant == "regularised")] = sol
+            ref = sol.reference_angles_deg
+            band = f"band at {sol.band_angle_deg:.1f} deg" if sol.localised else "no localised band"
+            post = ", ".join(f"q({e:g}) {q:.1f}" for e, q in zip(POST_PEAK_STRAINS, _post_peak_q(sol.history)))
+            print(f"{tag}: peak q {sol.peak_q_kPa:.1f} kPa; {post} kPa; peak phi {sol.peak_friction_deg:.1f}, "
+                  f"psi {sol.peak_dilatancy_deg:.1f} deg; {band}; Coulomb {ref['coulomb']:.1f}, Roscoe "
+                  f"{ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} [{sol.stop_reason}]")
+    rows = collect(out)
+    _plot(rows, out / "q_vs_eps_a_meshes.png")
     return sols
 
 
-def _plot(sols, path):
+def _post_peak_q(history) -> list[float]:
+    """q [kPa] at the strains POST_PEAK_STRAINS (NaN beyond the end of the run)."""
+    e, q = np.asarray(history["eps_a"]), np.asarray(history["q_kPa"])
+    return [float(np.interp(x, e, q)) if x <= e[-1] else float("nan") for x in POST_PEAK_STRAINS]
+
+
+def collect(out: Path) -> list[dict]:
+    """One row per run folder under ``out`` (this process's runs and any other's); writes summary.csv and
+    prints the spread of the post-peak q over the meshes of each variant."""
+
+    rows = []
+    for folder in sorted(out.glob("resolution_*")):
+        if not (folder / "summary.json").is_file():
+            continue  # a run still going, or one that stopped before writing its summary
+        h = np.genfromtxt(folder / "history.csv", delimiter=",", names=True, comments="#")
+        params = json.loads((folder / "parameters.json").read_text())
+        summary = json.loads((folder / "summary.json").read_text())
+        status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
+        n = int(params["resolution"])
+        rows.append({"resolution": n, "regularised": not folder.name.endswith("_unregularised"),
+                     "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
+                     "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
+                     **summary})
+    with open(out / "summary.csv", "w") as f:
+        f.write("resolution,regularised,element_size_mm,peak_q_kPa,"
+                + ",".join(f"q_at_{e:g}_kPa" for e in POST_PEAK_STRAINS)
+                + ",final_eps_a,peak_phi_deg,peak_psi_deg,localised,band_angle_deg,coulomb_deg,roscoe_deg,"
+                "arthur_deg,completed\n")
+        for r in rows:
+            ref = r["reference_angles_deg"]
+            f.write(f"{r['resolution']},{int(r['regularised'])},{r['element_size_mm']:.4g},{r['peak_q_kPa']:.6g},"
+                    + ",".join(f"{q:.6g}" for q in r["post_peak_q"])
+                    + f",{r['history']['eps_a'][-1]:.6g},{r['peak_friction_deg']:.4g},{r['peak_dilatancy_deg']:.4g},"
+                    f"{int(r['localised'])},{r['band_angle_deg']:.4g},{ref['coulomb']:.4g},{ref['roscoe']:.4g},"
+                    f"{ref['arthur']:.4g},{int(r['completed'])}\n")
+    for reg in (True, False):
+        sel = [r for r in rows if r["regularised"] == reg]
+        q = np.array([r["post_peak_q"] for r in sel])
+        if len(sel) > 1 and not np.all(np.isnan(q)):
+            spread = np.nanmax(q, axis=0) - np.nanmin(q, axis=0)
+            print(f"{'regularised' if reg else 'unregularised'}: meshes {[r['resolution'] for r in sel]}, spread of q "
+                  + ", ".join(f"at {e:g}: {s:.1f} kPa" for e, s in zip(POST_PEAK_STRAINS, spread)))
+    return rows
+
+
+def _plot(rows, path):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    colours = dict(zip(sorted({n for n, _ in sols}), ("C0", "C1", "C2", "C3")))
-    for (n, reg), s in sorted(sols.items()):
-        ax.plot(s.history["eps_a"], s.history["q_kPa"], color=colours[n], ls="-" if reg else "--",
-                label=f"{n} across, h = {50 / n:.1f} mm" + ("" if reg else ", unregularised"))
+    colours = dict(zip(sorted({r["resolution"] for r in rows}), ("C0", "C1", "C2", "C3", "C4", "C5")))
+    for r in sorted(rows, key=lambda r: (not r["regularised"], r["resolution"])):
+        ax.plot(r["history"]["eps_a"], r["history"]["q_kPa"], color=colours[r["resolution"]],
+                ls="-" if r["regularised"] else "--",
+                label=f"h = {r['element_size_mm']:.2f} mm" + ("" if r["regularised"] else ", unregularised"))
     ax.set_xlabel("axial strain (compression +)")
     ax.set_ylabel("q = s1 - s3 [kPa]")
-    ax.set_title("biaxial, CPA with softening: solid = crack band over t")
+    ax.set_title("biaxial, CPA with softening: solid = crack band over t", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
-
-
-def post_peak_drop(sol) -> float:
-    """q at the end over the peak q (1: no softening)."""
-    q = np.asarray(sol.history["q_kPa"])
-    return float(q[-1] / np.nanmax(q))
 
 
 if __name__ == "__main__":

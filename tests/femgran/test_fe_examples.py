@@ -24,5 +24,7 @@ def test_fe_03_footing_alpha(tmp_path, load_example):
 
 def test_fe_04_biaxial_meshes(tmp_path, load_example):
     sols = load_example("fe_04_biaxial_meshes").main(["--quick", "--out", str(tmp_path)])
-    assert 20.0 < sols[(4, True)].peak_friction_deg < 60.0
+    # rough platens, E = 60 MPa: the peak friction angle of the specimen (measured 45.8 deg on this mesh
+    # to 4 %; the element test's plane-strain peak is 43-44 deg, the platens add a little)
+    assert 42.0 < sols[(4, True)].peak_friction_deg < 48.0
     assert (tmp_path / "summary.csv").is_file() and (tmp_path / "q_vs_eps_a_meshes.png").is_file()
