@@ -170,7 +170,8 @@ def _biaxial(args):
         return s.band_angle_deg
 
     fixed = _kw(args, p0_kPa=args.p0, axial_strain=args.axial_strain, imperfection=args.imperfection,
-                alpha_deg=args.alpha[0])
+                alpha_deg=args.alpha[0], platens=args.platens, weak_zone=args.weak_zone,
+                weak_zone_height=args.weak_zone_height)
     sols = _sweep(args, biaxial, True, "resolution", [int(r) for r in args.resolution], "resolution", metric, fixed)
     if len(sols) > 1:
         _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a_meshes.png", "resolution", "axial strain", "q [kPa]")
@@ -218,6 +219,9 @@ def register(subparsers) -> None:
     p.add_argument("--p0", type=float, default=100.0, help="confining pressure [kPa]")
     p.add_argument("--axial-strain", type=float, default=0.1)
     p.add_argument("--imperfection", type=float, default=0.02)
+    p.add_argument("--platens", choices=("smooth", "rough"), default="smooth")
+    p.add_argument("--weak-zone", type=float, default=0.0, help="relative drop of eta0 near the left face (CPA)")
+    p.add_argument("--weak-zone-height", type=float, default=0.25, help="its height / H, in (0, 1)")
     p.add_argument("--resolution", type=int, nargs="+", default=[8], help="elements across the width (one run each)")
     p.set_defaults(func=_biaxial)
 
