@@ -1,9 +1,10 @@
 """Plane-strain biaxial compression with a small imperfection: localisation in a shear band.
 
 Geometry and axes: x in [0, W], y in [0, H] (H = 2 W), y vertical (loading axis), plane strain in z.
-The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Smooth rigid platens: bottom u_y = 0
-(and u_x = 0 at the corner (0, 0)), top u_y = -eps_a H t, free to slide; the confining pressure p0 acts on
-the two vertical faces and is the in-situ stress (-p0 I).
+The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Rigid platens, smooth by default:
+bottom u_y = 0 (and u_x = 0 at the corner (0, 0)), top u_y = -eps_a H t, free to slide; rough
+(``platens="rough"``): u_x = 0 on both end faces as well. The confining pressure p0 acts on the two
+vertical faces and is the in-situ stress (-p0 I).
 
 Imperfection: the left face is pushed inwards by ``imperfection * W`` in a smooth bump at mid-height
 (a geometric imperfection: every point carries the same material, so any material object works), and
