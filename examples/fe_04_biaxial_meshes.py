@@ -33,6 +33,7 @@ import numpy as np
 
 from femgran.cases import biaxial
 from femgran.cases.common import axes_plane_strain
+from femgran.solver import History
 from material import CPAModel, load_preset
 
 VARIANTS = ("regularised", "unregularised")
@@ -91,7 +92,7 @@ def collect(out: Path) -> list[dict]:
     for folder in sorted(out.glob("resolution_*")):
         if not (folder / "summary.json").is_file():
             continue  # a run still going, or one that stopped before writing its summary
-        h = np.genfromtxt(folder / "history.csv", delimiter=",", names=True, comments="#")
+        h = History.read_csv(folder / "history.csv")
         params = json.loads((folder / "parameters.json").read_text())
         summary = json.loads((folder / "summary.json").read_text())
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
@@ -114,11 +115,14 @@ def collect(out: Path) -> list[dict]:
                     f"{ref['arthur']:.4g},{int(r['completed'])}\n")
     for reg in (True, False):
         sel = [r for r in rows if r["regularised"] == reg]
-        q = np.array([r["post_peak_q"] for r in sel])
-        if len(sel) > 1 and not np.all(np.isnan(q)):
-            spread = np.nanmax(q, axis=0) - np.nanmin(q, axis=0)
-            print(f"{'regularised' if reg else 'unregularised'}: meshes {[r['resolution'] for r in sel]}, spread of q "
-                  + ", ".join(f"at {e:g}: {s:.1f} kPa" for e, s in zip(POST_PEAK_STRAINS, spread)))
+        parts = []
+        for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
+            got = [(r["resolution"], r["post_peak_q"][j]) for r in sel if np.isfinite(r["post_peak_q"][j])]
+            if len(got) > 1:
+                q = [v for _, v in got]
+                parts.append(f"at {e:g}: {max(q) - min(q):.1f} kPa over meshes {[n for n, _ in got]}")
+        if parts:
+            print(f"{'regularised' if reg else 'unregularised'}: spread of q " + "; ".join(parts))
     return rows
 
 

@@ -155,6 +155,23 @@ class History:
             for r in self._rows:
                 f.write(",".join(repr(float(r.get(c, np.nan))) for c in cols) + "\n")
 
+    @classmethod
+    def read_csv(cls, path) -> "History":
+        """A history written by :meth:`to_csv` or by a run folder's ``history.csv`` (``#`` lines skipped)."""
+        with open(path) as f:
+            lines = [ln.strip() for ln in f if ln.strip() and not ln.startswith("#")]
+        if not lines:
+            raise ValueError(f"history file {str(path)!r}: no header line")
+        cols = lines[0].split(",")
+        h = cls()
+        for i, ln in enumerate(lines[1:], start=2):
+            values = ln.split(",")
+            if len(values) != len(cols):
+                raise ValueError(f"history file {str(path)!r}: row {i} has {len(values)} values "
+                                 f"for {len(cols)} columns")
+            h.append(dict(zip(cols, map(float, values))))
+        return h
+
 
 @dataclass
 class Solution:
@@ -379,7 +396,6 @@ class NewtonSolver:
         rf, ref = self._norms(r, t_new)
         residuals = [rf / ref]
         best, best_du, since_best = residuals[0], du, 0
-        it = 0
         for it in range(1, opt.max_iter + 1):
             if residuals[-1] <= opt.tol:
                 return du, it - 1, residuals

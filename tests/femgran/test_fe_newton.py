@@ -321,3 +321,18 @@ def test_a_cycling_newton_stops_after_stall_iter_and_keeps_its_best_iterate():
     assert rf / ref == pytest.approx(best, rel=1e-9)
     with pytest.raises(ValueError, match="stall_iter"):
         SolverOptions(stall_iter=1)
+
+
+def test_history_reads_back_what_it_wrote(tmp_path):
+    from femgran.solver import History
+
+    d, bcs = _plastic_cube()
+    sol = NewtonSolver(d, material.VonMises(1e4, 0.3, 20.0, 200.0), bcs).run(2)
+    sol.history.to_csv(tmp_path / "h.csv")
+    back = History.read_csv(tmp_path / "h.csv")
+    assert back.columns == sol.history.columns
+    for c in back.columns:
+        np.testing.assert_array_equal(back[c], sol.history[c])  # repr of floats: exact
+    (tmp_path / "bad.csv").write_text("# note\na,b\n1,2\n3\n")
+    with pytest.raises(ValueError, match="row 3 has 1 values for 2 columns"):
+        History.read_csv(tmp_path / "bad.csv")
