@@ -1051,12 +1051,12 @@ def cpa_batch(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coe
 # ---------------------------------------------------------------------------------------- Mandel
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def to_mandel(a):
     """(N, 3, 3) symmetric -> (N, 6) Mandel (11, 22, 33, r 23, r 13, r 12)."""
     N = a.shape[0]
     out = np.empty((N, 6))
-    for p in prange(N):
+    for p in range(N):
         out[p, 0] = a[p, 0, 0]
         out[p, 1] = a[p, 1, 1]
         out[p, 2] = a[p, 2, 2]
@@ -1066,12 +1066,12 @@ def to_mandel(a):
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def from_mandel(v):
     """(N, 6) Mandel -> (N, 3, 3) symmetric."""
     N = v.shape[0]
     out = np.empty((N, 3, 3))
-    for p in prange(N):
+    for p in range(N):
         out[p, 0, 0] = v[p, 0]
         out[p, 1, 1] = v[p, 1]
         out[p, 2, 2] = v[p, 2]
@@ -1081,14 +1081,14 @@ def from_mandel(v):
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def tangent_from_mandel(D):
     """(N, 6, 6) Mandel tangent -> (N, 3, 3, 3, 3) with both minor symmetries."""
     N = D.shape[0]
     out = np.empty((N, 3, 3, 3, 3))
     idx_i = (0, 1, 2, 1, 0, 0)
     idx_j = (0, 1, 2, 2, 2, 1)
-    for p in prange(N):
+    for p in range(N):
         for I in range(6):
             wi = 1.0 if I < 3 else ISQ2
             i, j = idx_i[I], idx_j[I]
