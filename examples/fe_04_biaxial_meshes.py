@@ -17,16 +17,22 @@ The element itself must not snap back either (crack band: h below a limit that g
 
 Prints, per run, the peak q, friction and dilatancy angles, the band angle (or that no band formed)
 with the Coulomb / Roscoe / Arthur angles, q at two post-peak strains; writes ``summary.csv`` and a plot
-of all curves. Runs can be split over processes (``--resolutions 16 --variants unregularised``): the
-summary and the plot collect every run folder found under ``--out``.
+of all curves. ``--jobs 2`` runs the six runs two at a time, each in its own process with one numba
+thread (its output in ``<out>/<run>.log``); runs can also be split by hand (``--resolutions 16
+--variants unregularised``, with ``NUMBA_NUM_THREADS=1`` when processes share the cores). The summary
+and the plot collect every run folder found under ``--out``.
 
-    python examples/fe_04_biaxial_meshes.py [--quick] [--resolutions 8 12 16] [--variants ...]
+    python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 8 12 16] [--variants ...]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -51,31 +57,68 @@ def main(argv=None) -> dict:
     ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
     ap.add_argument("--axial-strain", type=float, default=0.06)
     ap.add_argument("--steps", type=int, default=60, help="nominal load steps")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="runs at a time, each in its own process with one numba thread")
     args = ap.parse_args(argv)
     if args.quick:
         args.resolutions, args.variants, args.axial_strain, args.steps = [4], ["regularised"], 0.03, 10
-    params = load_preset("ottawa_c109").replace(E=args.youngs_modulus, zeta=1.05,
-                                                softening_slip=args.softening_slip, residual_ratio=0.65)
+    if args.jobs < 1:
+        ap.error(f"--jobs must be at least 1, got {args.jobs}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    runs = [(n, variant) for variant in args.variants for n in args.resolutions]
     sols = {}
-    for variant in args.variants:
-        for n in args.resolutions:
-            model = CPAModel(params, axes=axes_plane_strain(0.0), regularise=variant == "regularised")
-            tag = f"resolution_{n}" + ("" if variant == "regularised" else "_unregularised")
-            sol = biaxial(model, 100.0, 0.0, axial_strain=args.axial_strain, steps=args.steps, resolution=n,
-                          imperfection=0.0, weak_zone=0.1, weak_zone_height=0.01, platens=args.platens,
-                          out=out / tag)
-            sols[(n, variant == "regularised")] = sol
-            ref = sol.reference_angles_deg
-            band = f"band at {sol.band_angle_deg:.1f} deg" if sol.localised else "no localised band"
-            post = ", ".join(f"q({e:g}) {q:.1f}" for e, q in zip(POST_PEAK_STRAINS, _post_peak_q(sol.history)))
-            print(f"{tag}: peak q {sol.peak_q_kPa:.1f} kPa; {post} kPa; peak phi {sol.peak_friction_deg:.1f}, "
-                  f"psi {sol.peak_dilatancy_deg:.1f} deg; {band}; Coulomb {ref['coulomb']:.1f}, Roscoe "
-                  f"{ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} [{sol.stop_reason}]")
+    if args.jobs == 1:
+        for n, variant in runs:
+            sols[(n, variant == "regularised")] = _run(n, variant, args, out)
+    else:
+        _run_in_processes(runs, args, out)
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
     return sols
+
+
+def _tag(n: int, variant: str) -> str:
+    return f"resolution_{n}" + ("" if variant == "regularised" else "_unregularised")
+
+
+def _run(n: int, variant: str, args, out: Path):
+    """One run in this process: prints its one-line summary, returns the solution."""
+    params = load_preset("ottawa_c109").replace(E=args.youngs_modulus, zeta=1.05,
+                                                softening_slip=args.softening_slip, residual_ratio=0.65)
+    model = CPAModel(params, axes=axes_plane_strain(0.0), regularise=variant == "regularised")
+    tag = _tag(n, variant)
+    sol = biaxial(model, 100.0, 0.0, axial_strain=args.axial_strain, steps=args.steps, resolution=n,
+                  imperfection=0.0, weak_zone=0.1, weak_zone_height=0.01, platens=args.platens, out=out / tag)
+    ref = sol.reference_angles_deg
+    band = f"band at {sol.band_angle_deg:.1f} deg" if sol.localised else "no localised band"
+    post = ", ".join(f"q({e:g}) {q:.1f}" for e, q in zip(POST_PEAK_STRAINS, _post_peak_q(sol.history)))
+    print(f"{tag}: peak q {sol.peak_q_kPa:.1f} kPa; {post} kPa; peak phi {sol.peak_friction_deg:.1f}, "
+          f"psi {sol.peak_dilatancy_deg:.1f} deg; {band}; Coulomb {ref['coulomb']:.1f}, Roscoe "
+          f"{ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} [{sol.stop_reason}]", flush=True)
+    return sol
+
+
+def _run_in_processes(runs, args, out: Path) -> None:
+    """Each run in a child process of this script (one numba thread: parallel kernels in processes that
+    share the cores wait for descheduled threads), at most ``args.jobs`` at a time, finest mesh first."""
+
+    base = ["--out", str(out), "--softening-slip", repr(args.softening_slip), "--youngs-modulus",
+            repr(args.youngs_modulus), "--platens", args.platens, "--axial-strain", repr(args.axial_strain),
+            "--steps", str(args.steps)]
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+
+    def child(run):
+        n, variant = run
+        log = out / f"{_tag(n, variant)}.log"
+        cmd = [sys.executable, str(Path(__file__).resolve()), *base, "--resolutions", str(n), "--variants", variant]
+        with open(log, "w") as f:
+            code = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=env).returncode
+        lines = [ln for ln in log.read_text().splitlines() if ln.startswith(_tag(n, variant) + ":")]
+        print(lines[-1] if lines else f"{_tag(n, variant)}: exit code {code}, no result (see {log})", flush=True)
+
+    with ThreadPoolExecutor(args.jobs) as pool:
+        list(pool.map(child, sorted(runs, key=lambda r: -r[0])))
 
 
 def _post_peak_q(history) -> list[float]:
