@@ -567,8 +567,8 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     which resolves the active-set cycling of planes that sit exactly on their loading/unloading kink
     under a tiny increment. Returns (ok, iterations).
 
-    ``last_resort`` (after every normal attempt at every sub-step level failed, from the finest level
-    down): if both fail, a third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of
+    ``last_resort`` (after the normal adaptive sub-stepping failed, with uniform sub-steps from the
+    finest size up): if both fail, a third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of
     _H_ON (h_wide below). It resolves the case where the local problem of non-associated multi-plane
     flow has no consistent active set for the increment (a plane loads when it is elastic and unloads
     when it is loading: the active-set loop cycles for ever); the plane then stays elastic for this
@@ -745,6 +745,18 @@ def _finish_substep(kap, kap_n, active, dkap):
         dkap[a] = kap[a] - kap_n[a] if active[a] else 0.0
 
 
+@njit(cache=True, inline="always")
+def _mean_trial(sig, de, stiff):
+    """Mean stress of the elastic trial sig + stiff : de (Mandel)."""
+    p = 0.0
+    for i in range(3):
+        acc = sig[i]
+        for j in range(6):
+            acc += stiff[i, j] * de[j]
+        p += acc / 3.0
+    return p
+
+
 @njit(cache=True)
 def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6, coeffs, eta0, beta, ahat, bhat,
                   zeta, A, inv_t, eta_c_ratio, comp, stiff, iopt, fopt,
@@ -790,25 +802,26 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
     s_last = np.inf
     # tension cut-off (MODEL.md "Tension"), first case: when the elastic trial stress has no compression
     # left (mean stress >= 0) no stress state of the cone can follow the increment
-    p_trial = 0.0
-    for i in range(3):
-        acc = sig_n[i]
-        for j in range(6):
-            acc += stiff[i, j] * de[j]
-        p_trial += acc / 3.0
-    if p_trial >= 0.0:
+    if _mean_trial(sig_n, de, stiff) >= 0.0:
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1, 0, True
-    # levels 0..max_level with the normal active-set logic; if all fail, once more from the finest level
-    # down with the last-resort band (_solve_substep), whose error, the ratio change of one sub-step, is
-    # then as small as it can be
-    for attempt in range(2 * (max_level + 1)):
-        last_resort = attempt > max_level
-        level = 2 * max_level + 1 - attempt if last_resort else attempt
-        m = 1 << level
+    # Sub-steps are counted in units of the finest one, 2**-max_level of the increment. Attempt 0, the
+    # normal active-set logic: the whole increment first; a sub-step that fails is halved (down to one
+    # unit) and retried from the last converged state, and the rest of the increment goes on with the
+    # size that worked (a point that meets a hard stretch late in its increment, e.g. on its way to the
+    # apex, keeps the part it has done). If that fails, the last resort (_solve_substep's band) with
+    # uniform sub-steps from the finest size up, where the band's error, the ratio change of one
+    # sub-step, is as small as it can be.
+    total = 1 << max_level
+    for attempt in range(max_level + 2):
+        last_resort = attempt > 0
+        h = total if attempt == 0 else 1 << (attempt - 1)
+        pos = 0
+        nsub = 0
+        p_before = 0.0  # mean stress before the last converged sub-step, and that sub-step's size
+        h_last = 1
         for i in range(6):
             sig_prev[i] = sig_n[i]
-            de_k[i] = de[i] / m
         for a in range(M):
             kap[a] = kap_n[a]
         if want_tangent:
@@ -819,10 +832,17 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                 for j in range(6):
                     Dk[a, j] = 0.0
         failed = False
-        for k in range(1, m + 1):
-            frac = k / m
+        while pos < total:
+            h = min(h, total - pos)
+            frac = (pos + h) / total  # the fraction of the increment done at the end of this sub-step
+            hf = h / total  # and the fraction this sub-step makes
             for i in range(6):
                 eps_k[i] = eps_n[i] + frac * de[i]
+                de_k[i] = hf * de[i]
+            if nsub > 0 and _mean_trial(sig_prev, de_k, stiff) >= 0.0:
+                # the cut-off's first case met on the way: this sub-step opens the material past the apex
+                _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
+                return _OK, nsub + 1, total_it, True
             _lambda_and_slope(eps_k, beta, ahat, bhat, lam6, Lam, lam_scratch)
             _plane_strengths(nn6, om6, lam6, coeffs, eta0, eta_f, deta_f)
             ok, its = _solve_substep(sig_prev, de_k, kap, eta_f, normals, nn6, weights, cohesion, zeta, A, inv_t,
@@ -831,25 +851,42 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                                      last_resort, sp)
             total_it += its
             if not ok:
+                if not last_resort and h > 1:
+                    h //= 2
+                    continue
                 failed = True
-                if level == max_level and not last_resort:
-                    # how close to the apex the finest sub-stepping got before it stopped
-                    s_last = 0.0
-                    for i in range(6):
-                        s_last = max(s_last, abs(sig_prev[i]))
+                # The point was on its way to the apex, where the plastic compliance of the low-stress
+                # planes stops the local Newton, if the rest of the increment takes its mean stress past
+                # zero: the elastic trial of the rest from the last converged stress (the cut-off's first
+                # case), or the mean stress's change in the last converged sub-step carried on linearly
+                # (dilation unloads the point faster than the elastic trial says).
+                rest = total - pos
+                for i in range(6):
+                    de_k[i] = rest / total * de[i]
+                p_now = (sig_prev[0] + sig_prev[1] + sig_prev[2]) / 3.0
+                if _mean_trial(sig_prev, de_k, stiff) >= 0.0 or (
+                        nsub > 0 and p_now + (p_now - p_before) * rest / h_last >= 0.0):
+                    _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
+                    return _OK, nsub + 1, total_it, True
+                # how close to the apex any sub-stepping got before it stopped
+                s_fail = 0.0
+                for i in range(6):
+                    s_fail = max(s_fail, abs(sig_prev[i]))
+                s_last = min(s_last, s_fail)
                 break
+            more = pos + h < total  # another sub-step follows
             if want_tangent:
-                # B = S Dsig_{k-1} + I/m + sum_active (w/t)(SN - dil NN) (x) Dkap_{k-1,a}
+                # B = S Dsig_{k-1} + I hf + sum_active (w/t)(SN - dil NN) (x) Dkap_{k-1,a}
                 #     - sum_active dG_a/d eta_f * d eta_f/d eps * frac
                 for i in range(6):
                     for j in range(6):
                         acc = 0.0
-                        if k > 1:
+                        if nsub > 0:
                             for l in range(6):
                                 acc += comp[i, l] * Dsig[l, j]
-                        B[i, j] = acc + (1.0 / m if i == j else 0.0)
+                        B[i, j] = acc + (hf if i == j else 0.0)
                 for a in range(M):
-                    if not active[a] or (k == 1 and beta == 0.0):
+                    if not active[a] or (nsub == 0 and beta == 0.0):
                         continue  # (Dkap_0 = 0: nothing to add in the first sub-step without induced terms)
                     n0, n1, n2 = normals[a, 0], normals[a, 1], normals[a, 2]
                     t0, t1, t2 = _traction(sig, n0, n1, n2)
@@ -859,7 +896,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                     _sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
                     wt = weights[a] * inv_t
                     dil = work[a, 4]
-                    if k > 1:
+                    if nsub > 0:
                         for i in range(6):
                             g = wt * (sn6[i] - dil * nn6[a, i])
                             for j in range(6):
@@ -894,7 +931,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                         Dsig[i, j] = col[i]
                 # Dkap_k = kappa' d etah/d sigma . Dsig_k + d kappa/d eta_f d eta_f/d eps frac  (active);
                 # needed only by a following sub-step
-                for a in range(M if k < m else 0):
+                for a in range(M if more else 0):
                     if not active[a]:
                         for j in range(6):
                             Dk_new[a, j] = Dk[a, j]
@@ -923,21 +960,25 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
                             for i in range(6):
                                 acc += nn6[a, i] * Lam[i, j]
                             Dk_new[a, j] += scale * acc
-                for a in range(M if k < m else 0):
+                for a in range(M if more else 0):
                     for j in range(6):
                         Dk[a, j] = Dk_new[a, j]
             for a in range(M):
                 if active[a]:
                     kap[a] = kap[a] + dkap[a]
+            p_before = (sig_prev[0] + sig_prev[1] + sig_prev[2]) / 3.0
+            h_last = h
             for i in range(6):
                 sig_prev[i] = sig[i]
+            pos += h
+            nsub += 1
         if not failed:
             _write_result(sig_out, kap_out, D_out, sig_prev, kap, Dsig, want_tangent)
-            return (_OK if m == 1 else _SUBSTEPPED), m, total_it, False
-    # second case: no sub-step sequence converged, and either the finest one ran into the apex (its last
-    # converged stress is under 5 % of the start stress, or the point started on the apex) or the trial
-    # stress pulls some plane apart: the increment opens the material faster than plastic dilation can
-    # follow, and the point goes to the apex
+            return (_OK if nsub == 1 else _SUBSTEPPED), nsub, total_it, False
+    # second case: no sub-step sequence converged, and either one ran into the apex (its last converged
+    # stress is under 5 % of the start stress or under the floor below, or the point started on the apex)
+    # or the trial stress pulls some plane apart: the increment opens the material faster than plastic
+    # dilation can follow, and the point goes to the apex
     s_start = 0.0
     s_inc = 0.0  # the elastic stress of the whole increment
     for i in range(6):
@@ -946,11 +987,12 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
         for j in range(6):
             acc += stiff[i, j] * de[j]
         s_inc = max(s_inc, abs(acc))
-    # (or the point starts within one increment's elastic stress of the apex, or below _APEX_FLOOR of
-    # the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for E = 6000 kPa, the
-    # weight of 5 cm of sand; such a point is practically stress free, and a local problem that no
-    # sub-stepping solves there is not worth stopping a boundary-value problem for)
-    if s_last <= 0.05 * s_start or s_start <= max(s_inc, _APEX_FLOOR * stiff[0, 0]):
+    # (or the point starts within one increment's elastic stress of the apex, or starts or got below
+    # _APEX_FLOOR of the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for
+    # E = 6000 kPa, the weight of 5 cm of sand; such a point is practically stress free, and a local
+    # problem that no sub-stepping solves there is not worth stopping a boundary-value problem for)
+    floor = _APEX_FLOOR * stiff[0, 0]
+    if s_last <= max(0.05 * s_start, floor) or s_start <= max(s_inc, floor):
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1 << max_level, total_it, True
     for i in range(6):

@@ -12,8 +12,11 @@ loads when its mobilised ratio ``etah`` exceeds the level ``eta(kappa_n)`` it ha
 decreases). The strain residual is solved by Newton's method with the analytic 6x6 Jacobian and a line
 search; the slips of the loading planes are unknowns too (the hardening law is an equation per plane),
 so nothing is singular as a plane approaches failure. The consistent tangent is the inverse Jacobian, corrected for the dependence of eta_f on the total strain (induced
-anisotropy, 3.14-3.15). A step that does not converge is split into 2, 4, ... sub-steps inside the
-routine (``max_substep_level``); the tangent follows the sub-steps by the chain rule. A point that still
+anisotropy, 3.14-3.15). A step that does not converge is split inside the routine: a failing sub-step
+is halved and retried from the last converged state, down to 2**-max_substep_level of the increment,
+and the rest goes on with the size that worked; the tangent follows the sub-steps by the chain rule. A
+point whose sub-stepping stops on its way to the apex (the rest of the increment would take its mean
+stress past zero, or it got below 1e-4 of the elastic stiffness) goes to the apex. A point that still
 fails returns its start-of-step stress, ``status = STATUS_FAILED`` and a suggested step ratio, never
 NaN, and its inputs are kept (and written to ``replay_dir``) so that :func:`replay` can re-run it.
 
@@ -108,7 +111,7 @@ class CPAModel:
     maxit : int
         Newton iterations per (sub)step before the step is split.
     max_substep_level : int
-        The increment is split into up to 2**max_substep_level sub-steps inside the routine.
+        The smallest sub-step inside the routine is 2**-max_substep_level of the increment.
     tol : float
         Convergence: |R| <= tol |d_eps| (Mandel norms, strain units).
     cutoff_stiffness : float

@@ -383,3 +383,33 @@ def test_point_within_one_increment_of_the_apex_goes_there():
     _, s, st, D = replay(path, max_substep_level=2)
     assert st["status"][0] != STATUS_FAILED and np.isfinite(D).all()
     assert np.abs(s[0]).max() <= 2 * np.abs(np.load(path)["stress"][0]).max()  # stays at the apex's scale
+
+
+def test_stiff_sand_points_unloading_to_the_apex_integrate():
+    """Four points beside a strip footing on a stiff sand (E = 60 MPa) at 5-15 kPa, whose first
+    increment failed at every sub-step level: dilation under the footing's sideways push unloads them
+    towards the apex, and near it the local Newton of the low-stress planes stops. The adaptive
+    sub-stepping keeps the part of the increment already done, and a point whose path reaches the apex
+    within the increment (or whose last converged stress is below 1e-4 of the elastic stiffness) goes
+    there. Reference: the same increment applied in 256 separate updates."""
+    import json
+    from pathlib import Path
+
+    from material.parameters import parameters_from_dict
+
+    path = Path(__file__).parent / "data" / "stiff_sand_low_stress_points.npz"
+    model, s, st, D = replay(path)
+    assert (st["status"] != STATUS_FAILED).all() and np.isfinite(D).all()
+    d = dict(np.load(path))
+    params = parameters_from_dict(json.loads(str(d["params_json"])))
+    reference = CPAModel(params, rule=str(d["rule"]), axes=d["axes"])
+    s_ref, st_ref = d["stress"].copy(), {k[7:]: v.copy() for k, v in d.items() if k.startswith("state__")}
+    for _ in range(256):
+        s_ref, st_ref, _ = reference.update(d["d_strain"] / 256, s_ref, st_ref)
+    assert (st_ref["status"] != STATUS_FAILED).all()
+    start = np.abs(d["stress"]).max(axis=(1, 2))
+    err = np.abs(s - s_ref).max(axis=(1, 2))
+    floor = 1e-4 * (params.E * (1 - params.nu) / ((1 + params.nu) * (1 - 2 * params.nu)))  # 1e-4 (lambda + 2 mu)
+    cut = st["tension_cutoff"]
+    assert cut.sum() == 3 and (err[cut] <= floor).all()  # at the apex, or within the floor of it
+    assert (err[~cut] <= 0.01 * start[~cut]).all()  # the one that stays in the cone: within 1 % of its stress
