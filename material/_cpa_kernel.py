@@ -976,7 +976,7 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             _write_result(sig_out, kap_out, D_out, sig_prev, kap, Dsig, want_tangent)
             return (_OK if nsub == 1 else _SUBSTEPPED), nsub, total_it, False
     # second case: no sub-step sequence converged, and either one ran into the apex (its last converged
-    # stress is under 5 % of the start stress or under the floor below, or the point started on the apex)
+    # stress is under 5 % of the start stress, or the point started on the apex)
     # or the trial stress pulls some plane apart: the increment opens the material faster than plastic
     # dilation can follow, and the point goes to the apex
     s_start = 0.0
@@ -987,12 +987,12 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
         for j in range(6):
             acc += stiff[i, j] * de[j]
         s_inc = max(s_inc, abs(acc))
-    # (or the point starts within one increment's elastic stress of the apex, or starts or got below
-    # _APEX_FLOOR of the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for
+    # (or the point starts within one increment's elastic stress of the apex, or below _APEX_FLOOR of
+    # the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for
     # E = 6000 kPa, the weight of 5 cm of sand; such a point is practically stress free, and a local
     # problem that no sub-stepping solves there is not worth stopping a boundary-value problem for)
     floor = _APEX_FLOOR * stiff[0, 0]
-    if s_last <= max(0.05 * s_start, floor) or s_start <= max(s_inc, floor):
+    if s_last <= 0.05 * s_start or s_start <= max(s_inc, floor):
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1 << max_level, total_it, True
     for i in range(6):

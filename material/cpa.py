@@ -15,8 +15,8 @@ so nothing is singular as a plane approaches failure. The consistent tangent is 
 anisotropy, 3.14-3.15). A step that does not converge is split inside the routine: a failing sub-step
 is halved and retried from the last converged state, down to 2**-max_substep_level of the increment,
 and the rest goes on with the size that worked; the tangent follows the sub-steps by the chain rule. A
-point whose sub-stepping stops on its way to the apex (the rest of the increment would take its mean
-stress past zero, or it got below 1e-4 of the elastic stiffness) goes to the apex. A point that still
+point whose sub-stepping stops on its way to the apex (the rest of the increment, elastically or as
+its last sub-step went, would take its mean stress past zero) goes to the apex. A point that still
 fails returns its start-of-step stress, ``status = STATUS_FAILED`` and a suggested step ratio, never
 NaN, and its inputs are kept (and written to ``replay_dir``) so that :func:`replay` can re-run it.
 
