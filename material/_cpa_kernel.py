@@ -568,8 +568,8 @@ def _solve_substep(sig_n, de, kap_n, eta_f, normals, nn6, weights, cohesion, zet
     under a tiny increment. Returns (ok, iterations).
 
     ``last_resort`` (after the normal adaptive sub-stepping failed, with uniform sub-steps from the
-    finest size up): if both fail, a third attempt with a wider switch-on hysteresis, h_wide zeta eta_f instead of
-    _H_ON (h_wide below). It resolves the case where the local problem of non-associated multi-plane
+    finest size up): if both fail, a third attempt with a wider switch-on hysteresis, h_wide zeta eta_f
+    instead of _H_ON (h_wide below). It resolves the case where the local problem of non-associated multi-plane
     flow has no consistent active set for the increment (a plane loads when it is elastic and unloads
     when it is loading: the active-set loop cycles for ever); the plane then stays elastic for this
     sub-step with an overstress below h_wide zeta eta_f sigma_N (the change of the ratio one sub-step
@@ -976,9 +976,9 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             _write_result(sig_out, kap_out, D_out, sig_prev, kap, Dsig, want_tangent)
             return (_OK if nsub == 1 else _SUBSTEPPED), nsub, total_it, False
     # second case: no sub-step sequence converged, and either one ran into the apex (its last converged
-    # stress is under 5 % of the start stress, or the point started on the apex)
-    # or the trial stress pulls some plane apart: the increment opens the material faster than plastic
-    # dilation can follow, and the point goes to the apex
+    # stress is under 5 % of the start stress, or the point started on the apex) or the trial stress
+    # pulls some plane apart: the increment opens the material faster than plastic dilation can follow,
+    # and the point goes to the apex
     s_start = 0.0
     s_inc = 0.0  # the elastic stress of the whole increment
     for i in range(6):
@@ -988,11 +988,10 @@ def _point_update(sig_n, de, eps_n, kap_n, normals, nn6, weights, cohesion, om6,
             acc += stiff[i, j] * de[j]
         s_inc = max(s_inc, abs(acc))
     # (or the point starts within one increment's elastic stress of the apex, or below _APEX_FLOOR of
-    # the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for
-    # E = 6000 kPa, the weight of 5 cm of sand; such a point is practically stress free, and a local
-    # problem that no sub-stepping solves there is not worth stopping a boundary-value problem for)
-    floor = _APEX_FLOOR * stiff[0, 0]
-    if s_last <= 0.05 * s_start or s_start <= max(s_inc, floor):
+    # the elastic modulus, the only stress scale of a cohesionless law: 0.9 kPa for E = 6000 kPa, the
+    # weight of 5 cm of sand; such a point is practically stress free, and a local problem that no
+    # sub-stepping solves there is not worth stopping a boundary-value problem for)
+    if s_last <= 0.05 * s_start or s_start <= max(s_inc, _APEX_FLOOR * stiff[0, 0]):
         _apex(sig_out, kap_out, D_out, kap_n, stiff, fopt[_F_CUTOFF_STIFFNESS], want_tangent)
         return _OK, 1 << max_level, total_it, True
     for i in range(6):
