@@ -398,7 +398,7 @@ def test_stiff_sand_points_unloading_to_the_apex_integrate():
     from material.parameters import parameters_from_dict
 
     path = Path(__file__).parent / "data" / "stiff_sand_low_stress_points.npz"
-    model, s, st, D = replay(path)
+    _, s, st, D = replay(path)
     assert (st["status"] != STATUS_FAILED).all() and np.isfinite(D).all()
     d = dict(np.load(path))
     params = parameters_from_dict(json.loads(str(d["params_json"])))
