@@ -103,9 +103,10 @@ def _run_in_processes(runs, args, out: Path) -> None:
     """Each run in a child process of this script (one numba thread: parallel kernels in processes that
     share the cores wait for descheduled threads), at most ``args.jobs`` at a time, finest mesh first."""
 
-    base = ["--out", str(out), "--softening-slip", repr(args.softening_slip), "--youngs-modulus",
-            repr(args.youngs_modulus), "--platens", args.platens, "--axial-strain", repr(args.axial_strain),
-            "--steps", str(args.steps)]
+    base = []  # every study option as parsed (after --quick), except those that choose the runs
+    for key, value in vars(args).items():
+        if key not in ("quick", "jobs", "resolutions", "variants"):
+            base += ["--" + key.replace("_", "-"), str(value)]
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
 
     def child(run):
