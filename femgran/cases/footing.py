@@ -161,6 +161,11 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
     sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    hint = _cohesionless_hint(mat, sol)
+    if hint:
+        sol.stop_reason = f"{sol.stop_reason}. {hint}"
+        if out_dir is not None:
+            write_parameters(out_dir / "status.json", {"completed": sol.completed, "reason": sol.stop_reason})
     sol.extra.update(params=params, **_capacity(sol.history, B))
     if out_dir is not None:
         from femgran.output import write_parameters
@@ -170,6 +175,23 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     if out_dir is not None and plots:
         _plots(sol, out_dir)
     return sol
+
+
+def _cohesionless_hint(material, sol) -> str:
+    """Advice for a run that stopped with a cohesionless CPA sand ("" when it does not apply).
+
+    Beside a rough footing the sand is pushed up and sideways; on a stiff sand (E = 60 MPa) points
+    near the footing edge dilate to the apex within the first millimetres, where the law has no
+    stiffness left, and flip between the apex and the cone from one Newton iteration to the next.
+    Measured (quick mesh, alpha 0, gamma 18, q_s 10 kPa): c0 = 0 stopped at a settlement of 1e-4 B;
+    c0 = 0.5 kPa ran on slowly (3.4 mm in 140 steps), c0 = 2 kPa to 0.05 B (212 steps, p = 652 kPa).
+    """
+    params = getattr(material, "params", None)
+    if sol.completed or params is None or getattr(params, "c0", None) != 0.0:
+        return ""
+    return ("The sand has no cohesion (c0 = 0): points beside the footing that dilate to the apex "
+            "(stress free) can stop Newton; a small cohesion, e.g. params.replace(c0=1.0) [kPa], "
+            "usually lets such a run continue")
 
 
 def _capacity(history, B: float) -> dict:
