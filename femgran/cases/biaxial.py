@@ -112,9 +112,10 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
 
     Returns
     -------
-    femgran.solver.Solution with ``band_angle_deg``, ``peak_friction_deg``, ``peak_dilatancy_deg``,
-    ``reference_angles_deg`` (Coulomb, Roscoe, Arthur), ``localised``; history columns ``eps_a``,
-    ``eps_v``, ``q_kPa`` (s1 - s3, compression +).
+    femgran.solver.Solution with ``peak_q_kPa`` (the largest q) and ``peak_friction_deg`` (from it),
+    ``peak_dilatancy_deg`` (at the first step within 1 % of the peak q), ``band_angle_deg`` (of the
+    strain increment from that step to the end), ``reference_angles_deg`` (Coulomb, Roscoe, Arthur),
+    ``localised``; history columns ``eps_a``, ``eps_v``, ``q_kPa`` (s1 - s3, compression +).
     """
     from femgran.assembly import Discretisation
     from femgran.mesh import name_box_boundaries, rectangle
@@ -190,9 +191,11 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
     h = sol.history
     q, e_a, e_l = h["q_kPa"], h["eps_a"], h["eps_lateral"]
-    # the peak: the first step reaching 99 % of the largest deviator (a plateau counts as a peak)
-    k = int(np.flatnonzero(q >= 0.99 * np.nanmax(q))[0])
-    s1, s3 = q[k] + p0, p0
+    # peak friction from the largest deviator; the dilatancy and the start of the band's strain
+    # increment at the first step within 1 % of it (on a plateau, where the dilatancy is still the peak's)
+    q_max = float(np.nanmax(q))
+    k = int(np.flatnonzero(q >= 0.99 * q_max)[0])
+    s1, s3 = q_max + p0, p0
     phi = float(np.degrees(np.arcsin(np.clip((s1 - s3) / (s1 + s3), -1, 1))))
     k0, k1 = max(k - 1, 0), min(k + 1, len(q) - 1)
     de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
@@ -204,7 +207,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
     angle, localised = band_angle(xq, gamma, width=max(2 * h_el, W / 10), exclude=exclude)
     sol.extra.update(params=params, band_angle_deg=angle, localised=localised, peak_friction_deg=phi,
-                     peak_dilatancy_deg=psi, peak_q_kPa=float(q[k]),
+                     peak_dilatancy_deg=psi, peak_q_kPa=q_max,
                      reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
     if out_dir is not None:
         from femgran.output import write_parameters

@@ -104,10 +104,13 @@ def test_band_angle_of_a_synthetic_band():
 
 
 def test_biaxial_runs_and_reports_the_angles(tmp_path):
-    sol = biaxial(material.DruckerPrager(3e4, 0.3, 1.0, 35.0, 5.0), 100.0, axial_strain=0.02, steps=8, resolution=4,
+    sol = biaxial(material.DruckerPrager(3e4, 0.3, 1.0, 35.0, 5.0), 100.0, axial_strain=0.06, steps=10, resolution=4,
                   out=tmp_path / "bx", plots=False)
     assert sol.completed
     assert 30.0 < sol.peak_friction_deg < 40.0  # plane-strain-matched DP cone with phi = 35
+    q_max = max(sol.history["q_kPa"])  # the largest q (on this plateau, later than the first step within 1 %)
+    assert sol.peak_q_kPa == q_max
+    assert np.sin(np.radians(sol.peak_friction_deg)) == pytest.approx(q_max / (q_max + 200.0), rel=1e-12)
     assert set(sol.reference_angles_deg) == {"coulomb", "roscoe", "arthur"}
     assert (tmp_path / "bx" / "summary.json").is_file() and (tmp_path / "bx" / "biaxial.pvd").is_file()
 
