@@ -149,12 +149,14 @@ def collect(out: Path) -> list[dict]:
     with open(out / "summary.csv", "w") as f:
         f.write("resolution,regularised,element_size_mm,peak_q_kPa,"
                 + ",".join(f"q_at_{e:g}_kPa" for e in POST_PEAK_STRAINS)
+                + "".join(f",drop_at_{e:g}_kPa" for e in POST_PEAK_STRAINS)
                 + ",final_eps_a,peak_phi_deg,peak_psi_deg,localised,band_angle_deg,coulomb_deg,roscoe_deg,"
                 "arthur_deg,completed\n")
         for r in rows:
             ref = r["reference_angles_deg"]
             f.write(f"{r['resolution']},{int(r['regularised'])},{r['element_size_mm']:.4g},{r['peak_q_kPa']:.6g},"
                     + ",".join(f"{q:.6g}" for q in r["post_peak_q"])
+                    + "".join(f",{r['peak_q_kPa'] - q:.6g}" for q in r["post_peak_q"])
                     + f",{r['history']['eps_a'][-1]:.6g},{r['peak_friction_deg']:.4g},{r['peak_dilatancy_deg']:.4g},"
                     f"{int(r['localised'])},{r['band_angle_deg']:.4g},{ref['coulomb']:.4g},{ref['roscoe']:.4g},"
                     f"{ref['arthur']:.4g},{int(r['completed'])}\n")
@@ -162,10 +164,12 @@ def collect(out: Path) -> list[dict]:
         sel = [r for r in rows if r["regularised"] == reg]
         parts = []
         for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
-            got = [(r["resolution"], r["post_peak_q"][j]) for r in sel if np.isfinite(r["post_peak_q"][j])]
+            got = [r for r in sel if np.isfinite(r["post_peak_q"][j])]
             if len(got) > 1:
-                q = [v for _, v in got]
-                parts.append(f"at {e:g}: {max(q) - min(q):.1f} kPa over meshes {[n for n, _ in got]}")
+                q = np.array([r["post_peak_q"][j] for r in got])
+                drop = np.array([r["peak_q_kPa"] for r in got]) - q
+                parts.append(f"at {e:g}: {np.ptp(q):.1f} kPa (of the drop from each mesh's peak: "
+                             f"{np.ptp(drop):.1f} kPa) over meshes {[r['resolution'] for r in got]}")
         if parts:
             print(f"{'regularised' if reg else 'unregularised'}: spread of q " + "; ".join(parts))
     return rows
@@ -177,17 +181,27 @@ def _plot(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, (ax, ax_drop) = plt.subplots(1, 2, figsize=(10, 4))
     colours = dict(zip(sorted({r["resolution"] for r in rows}), ("C0", "C1", "C2", "C3", "C4", "C5")))
     for r in sorted(rows, key=lambda r: (not r["regularised"], r["resolution"])):
-        ax.plot(r["history"]["eps_a"], r["history"]["q_kPa"], color=colours[r["resolution"]],
-                ls="-" if r["regularised"] else "--",
-                label=f"h = {r['element_size_mm']:.2f} mm" + ("" if r["regularised"] else ", unregularised"))
-    ax.set_xlabel("axial strain (compression +)")
+        style = dict(color=colours[r["resolution"]], ls="-" if r["regularised"] else "--",
+                     label=f"h = {r['element_size_mm']:.2f} mm" + ("" if r["regularised"] else ", unregularised"))
+        e, q = r["history"]["eps_a"], r["history"]["q_kPa"]
+        ax.plot(e, q, **style)
+        ax_drop.plot(e, q - r["peak_q_kPa"], **style)
     ax.set_ylabel("q = s1 - s3 [kPa]")
     ax.set_title("biaxial, CPA with softening: solid = crack band over t", fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
+    start = 0.8 * min(r["history"]["eps_a"][int(np.nanargmax(r["history"]["q_kPa"]))] for r in rows)
+    low = min(np.nanmin(np.where(r["history"]["eps_a"] >= start, r["history"]["q_kPa"] - r["peak_q_kPa"], 0.0))
+              for r in rows)
+    ax_drop.set_xlim(start, None)
+    ax_drop.set_ylim(1.1 * low - 1.0, 5.0)  # the post-peak part
+    ax_drop.set_ylabel("q - peak q of the mesh [kPa]")
+    ax_drop.set_title("softening from each mesh's own peak", fontsize=9)
+    for a in (ax, ax_drop):
+        a.set_xlabel("axial strain (compression +)")
+        a.legend(fontsize=7)
+        a.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
