@@ -161,17 +161,16 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
     sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
-    hint = _cohesionless_hint(mat, sol)
-    if hint:
-        sol.stop_reason = f"{sol.stop_reason}. {hint}"
-        if out_dir is not None:
-            write_parameters(out_dir / "status.json", {"completed": sol.completed, "reason": sol.stop_reason})
+    advice = _cohesionless_hint(mat, sol)
+    if advice:
+        sol.stop_reason = f"{sol.stop_reason}. {advice}"
     sol.extra.update(params=params, **_capacity(sol.history, B))
     if out_dir is not None:
         from femgran.output import write_parameters
 
-        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
-                                                    ("bearing_capacity_kPa", "pressure_at_10pct_kPa", "plateau_ratio")})
+        write_parameters(out_dir / "summary.json", {**{k: sol.extra[k] for k in
+                                                       ("bearing_capacity_kPa", "pressure_at_10pct_kPa", "plateau_ratio")},
+                                                    **({"advice": advice} if advice else {})})
     if out_dir is not None and plots:
         _plots(sol, out_dir)
     return sol
