@@ -161,7 +161,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
     sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
-    advice = _cohesionless_hint(mat, sol)
+    advice = _cohesionless_advice(mat, sol)
     if advice:
         sol.stop_reason = f"{sol.stop_reason}. {advice}"
     sol.extra.update(params=params, **_capacity(sol.history, B))
@@ -176,7 +176,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     return sol
 
 
-def _cohesionless_hint(material, sol) -> str:
+def _cohesionless_advice(material, sol) -> str:
     """Advice for a run that stopped with a cohesionless CPA sand ("" when it does not apply).
 
     Beside a rough footing the sand is pushed up and sideways; on a stiff sand (E = 60 MPa) points

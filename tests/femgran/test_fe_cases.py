@@ -83,14 +83,14 @@ def test_a_stopped_footing_on_cohesionless_sand_suggests_a_small_cohesion():
     """The stop message of a cohesionless CPA sand names the remedy; other runs are left alone."""
     from types import SimpleNamespace
 
-    from femgran.cases.footing import _cohesionless_hint
+    from femgran.cases.footing import _cohesionless_advice
 
     stopped = SimpleNamespace(completed=False)
     sand = CPAModel(load_preset("ottawa_c109"))
-    assert "c0" in _cohesionless_hint(sand, stopped) and "params.replace(c0=" in _cohesionless_hint(sand, stopped)
-    assert _cohesionless_hint(CPAModel(load_preset("ottawa_c109").replace(c0=1.0)), stopped) == ""
-    assert _cohesionless_hint(sand, SimpleNamespace(completed=True)) == ""
-    assert _cohesionless_hint(material.LinearElastic(2e4, 0.3), stopped) == ""
+    assert "c0" in _cohesionless_advice(sand, stopped) and "params.replace(c0=" in _cohesionless_advice(sand, stopped)
+    assert _cohesionless_advice(CPAModel(load_preset("ottawa_c109").replace(c0=1.0)), stopped) == ""
+    assert _cohesionless_advice(sand, SimpleNamespace(completed=True)) == ""
+    assert _cohesionless_advice(material.LinearElastic(2e4, 0.3), stopped) == ""
 
 
 def test_band_angle_of_a_synthetic_band():
