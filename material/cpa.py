@@ -1,48 +1,43 @@
 """The microplane Critical Plane Approach (CPA) law of anisotropic sand, as a Gauss-point routine.
 
-Theory: thesis sections 2.3 and 3.5, with the signs and corrections of MODEL.md. The kernel is in
-:mod:`material._cpa_kernel` (numba, vectorised over Gauss points); this module validates input,
-prepares the plane data in the global frame and owns the state layout and the failure replay files.
+Theory: thesis sections 2.3 and 3.5, with the package's corrections and decisions written down in
+``docs/cpa_law.md``. The numba kernels are :mod:`material._cpa_plane` (one plane),
+:mod:`material._cpa_local` (the local problem of one point and its solver) and
+:mod:`material._cpa_kernel` (the loop over points); this module validates input, prepares the plane data
+in the global frame, and owns the state layout and the failure replay files.
 
-Algorithm (implicit, strain driven; see the kernel's docstring for the equations)
--------------------------------------------------------------------------------
-Unknown: the end-of-step stress. For each plane the hardening law (2.16) is inverted, so the slip is an
-explicit function of the stress on a loading plane, ``kappa = A etah / (zeta eta_f - etah)``; a plane
-loads when its mobilised ratio ``etah`` exceeds the level ``eta(kappa_n)`` it has reached (kappa never
-decreases). The strain residual is solved by Newton's method with the analytic 6x6 Jacobian and a line
-search; the slips of the loading planes are unknowns too (the hardening law is an equation per plane),
-so nothing is singular as a plane approaches failure. The consistent tangent is the inverse Jacobian, corrected for the dependence of eta_f on the total strain (induced
-anisotropy, 3.14-3.15). A step that does not converge is split inside the routine: a failing sub-step
-is halved and retried from the last converged state, down to 2**-max_substep_level of the increment,
-and the rest goes on with the size that worked; the tangent follows the sub-steps by the chain rule. A
-point whose sub-stepping stops on its way to the apex (the rest of the increment, elastically or as
-its last sub-step went, would take its mean stress past zero) goes to the apex. A point that still
-fails returns its start-of-step stress, ``status = STATUS_FAILED`` and a suggested step ratio, never
-NaN, and its inputs are kept (and written to ``replay_dir``) so that :func:`replay` can re-run it.
+The update in brief
+-------------------
+Backward Euler: the end-of-step stress, the slip increments of the planes and the opening of a
+mean-stress cut-off solve the strain residual and one complementarity condition per plane (a plane's
+slip grows only while its mobilised ratio sits on its hardening curve) and for the cut-off. The stress
+is the solution of these equations, a deterministic function of (d_strain, stress, state), found by a
+semismooth Newton method from the start of the step with a line search on a merit function, with
+continuation in the fraction of the increment as the one outer loop; the consistent tangent is the
+derivative of that solution (:mod:`material._cpa_local`). A point that cannot be integrated (the
+branch of solutions ends before the end of the increment) returns its
+start-of-step stress, ``status = STATUS_FAILED`` and the fraction it reached as a suggested step ratio,
+never NaN; its inputs are kept (and written to ``replay_dir``) so :func:`replay` can re-run it.
 
-Decisions not fixed by the thesis (documented here, MODEL.md asks for it)
--------------------------------------------------------------------------
-* State variable of each plane: the accumulated tangential slip kappa [m]. The loading threshold is
-  ``eta(kappa_n) = zeta eta_f kappa_n / (A + kappa_n)`` evaluated with the *current* eta_f, so that with
-  induced anisotropy a strengthened plane needs a higher ratio to load again.
-* ``initial_state(n, stress=sigma0)`` puts every plane on the hardening curve of sigma0 (kappa_a from
-  the mobilised ratio of sigma0, as after a monotonic history) and counts no plastic strain for it, so
-  an anisotropic in-situ stress (K0) does not release a burst of slip in the first step.
-* Tension cut-off: the loading surfaces of (2.16) all pass through sigma_N = 0, so the law admits no
-  shear on a plane in tension (beyond the cohesion). When no admissible stress follows an increment
-  and the elastic trial stress has no compression left (mean stress >= 0), the point goes to the apex,
-  stress free; the misfit becomes plastic opening, kappa is unchanged, and the tangent is
-  ``cutoff_stiffness`` times the elastic one (default 1e-6, so that a structure stays solvable).
-  A point that no sub-stepping can integrate also goes to the apex when sub-stepping ran into it, when
-  the trial stress pulls a plane apart, or when its stress is within one increment's elastic stress of
-  zero or below 1e-4 of the elastic stiffness (0.9 kPa for the presets: practically stress free,
-  typically at the free surface beside a footing). ``state["tension_cutoff"]`` flags such points.
-* Active-set cycling: the local problem of non-associated flow on many planes can have no consistent
-  active set for an increment (a plane loads when elastic and unloads when loading). When every
-  normal attempt fails, a last resort lets such a plane stay elastic with an overstress of at most
-  1 % of its strength (the band of :func:`material._cpa_kernel._solve_substep`).
-* Elasticity: isotropic Hooke (E, nu), the macroscopic limit of the plane-based form (2.15)
-  normalised as in MODEL.md.
+Decisions not fixed by the thesis (``docs/cpa_law.md`` gives the reasons and the measurements)
+-------------------------------------------------------------------------------------------
+* The apex: the mobilised ratio is sqrt(tau^2 + b^2) / (sigma_N + c / eta_f + c_a), with
+  c_a = :attr:`CPAParameters.apex_stress` (default 0.05 kPa) and b = c_a / 10: every loading surface is
+  a convex cone with a rounded tip in tension, so a point can reach and leave zero stress without a
+  singularity; a cohesion enters as a shift of the normal stress (the failure surface
+  tau = c + eta_f sigma_N is the thesis's).
+* The compaction of a plane fades below the normal stress :attr:`CPAParameters.compaction_stress`
+  (default 2 kPa): without it the strain-driven update of a contractive plane set at low stress has no
+  solution (measured on the surface points of a footing).
+* Tension cut-off: the mean stress cannot be tensile; an extension beyond it opens the material
+  (plastic volumetric strain, ``state["cutoff_opening"]``).
+* ``initial_state(n, stress=sigma0)`` puts every plane 5 % above the hardening level of sigma0 (kappa_a
+  from its mobilised ratio, as after a monotonic history) and counts no plastic strain for it, so an
+  in-situ (K0) stress starts inside a small elastic range.
+* State variable of each plane: the accumulated slip kappa [m]; the loading threshold eta(kappa_n) is
+  evaluated with the current eta_f, so with induced anisotropy a strengthened plane needs a higher
+  ratio to load again.
+* Elasticity: isotropic Hooke (E, nu), the macroscopic limit of the plane-based form (2.15).
 """
 
 from __future__ import annotations
@@ -55,16 +50,10 @@ from pathlib import Path
 import numpy as np
 
 from material import _cpa_kernel as _k
+from material._cpa_local import Law, Options
+from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
-from material.base import (
-    STATUS_FAILED,
-    STATUS_OK,
-    STATUS_SUBSTEPPED,
-    State,
-    as_stress_batch,
-    check_batch,
-    check_state,
-)
+from material.base import STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
 from material.parameters import CPAParameters, load_preset, parameters_from_dict
 
 __all__ = ["CPAModel", "replay", "mandel_elastic"]
@@ -89,11 +78,9 @@ def _mandel1(a: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Options:
-    maxit: int = 30
-    max_substep_level: int = 6
-    tol: float = 1e-10
-    tol_hardening: float = 1e-12
-    cutoff_stiffness: float = 1e-6
+    maxit: int = 25
+    max_halvings: int = 12
+    tol: float = 1e-12
 
 
 class CPAModel:
@@ -109,13 +96,12 @@ class CPAModel:
         Material axes, columns e1, e2, e3 (e2 = deposition axis); default ``axes_from_alpha(0)``
         (e2 = global z). The planes are attached to this frame: n_a = R n_a^ref.
     maxit : int
-        Newton iterations per (sub)step before the step is split.
-    max_substep_level : int
-        The smallest sub-step inside the routine is 2**-max_substep_level of the increment.
+        Newton iterations of the local solver per continuation level.
+    max_halvings : int
+        How often the continuation may halve the fraction of the increment before the point fails.
     tol : float
-        Convergence: |R| <= tol |d_eps| (Mandel norms, strain units).
-    cutoff_stiffness : float
-        Tangent of a point on the tension cut-off, as a fraction of the elastic stiffness.
+        Convergence of the local solver: |R| <= tol (|d_eps| + |sigma_n| / E) and every
+        complementarity residual <= tol (dimensionless).
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -127,7 +113,7 @@ class CPAModel:
     """
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
-                 maxit: int = 30, max_substep_level: int = 6, tol: float = 1e-10, cutoff_stiffness: float = 1e-6,
+                 maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12,
                  replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True):
         from material.planes import integration_rule
 
@@ -137,16 +123,14 @@ class CPAModel:
             raise ValueError(f"params: expected CPAParameters or a preset name, got {type(params).__name__}")
         if int(maxit) < 1:
             raise ValueError(f"maxit = {maxit!r}: must be >= 1")
-        if not 0 <= int(max_substep_level) <= 12:
-            raise ValueError(f"max_substep_level = {max_substep_level!r}: allowed 0..12")
+        if not 0 <= int(max_halvings) <= 30:
+            raise ValueError(f"max_halvings = {max_halvings!r}: allowed 0..30")
         if not (0 < float(tol) < 1e-3):
             raise ValueError(f"tol = {tol!r}: allowed 0 < tol < 1e-3")
-        if not (0 <= float(cutoff_stiffness) <= 1):
-            raise ValueError(f"cutoff_stiffness = {cutoff_stiffness!r}: allowed 0..1")
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
-        self.options = _Options(int(maxit), int(max_substep_level), float(tol), 1e-12, float(cutoff_stiffness))
+        self.options = _Options(int(maxit), int(max_halvings), float(tol))
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
         self.regularise = bool(regularise)
@@ -164,6 +148,14 @@ class CPAModel:
         self._cohesion = np.ascontiguousarray(cohesion(params, self.normals, self.axes), dtype=float)
         self._coeffs = np.ascontiguousarray(params.a, dtype=float)
         self._stiff, self._comp = mandel_elastic(params.E, params.nu)
+        p = params
+        self._law = Law(self.normals, self._nn6, self.weights, self._cohesion, self._om6, self._coeffs,
+                        float(p.eta0), float(p.beta), float(p.alpha_hat), float(p.beta_hat), float(p.zeta),
+                        float(p.A), 1.0 / p.t, float(p.eta_c_ratio), float(p.apex_stress),
+                        APEX_ROUNDING * float(p.apex_stress),
+                        float(p.kappa_instability), float(p.residual_ratio), float(p.compaction_stress),
+                        float(p.bulk_modulus),
+                        self._comp, self._stiff)
 
     @property
     def n_planes(self) -> int:
@@ -174,7 +166,7 @@ class CPAModel:
 
     # ----------------------------------------------------------------------------- friction
     def friction_coefficients(self, strain=None) -> np.ndarray:
-        """eta_f of every plane (M,), or (N, M) for a batch of total strains (N, 3, 3)."""
+        """eta_f of every plane (M,), or (N, M) for a batch of total strains (N, 3, 3) (eqs. 2.4, 3.15)."""
         if strain is None:
             strain = np.zeros((1, 3, 3))
             squeeze = True
@@ -182,15 +174,18 @@ class CPAModel:
             strain = np.asarray(strain, dtype=float)
             squeeze = strain.ndim == 2
             strain = strain.reshape(-1, 3, 3)
-        eps6 = _k.to_mandel(np.ascontiguousarray(strain))
-        out = np.empty((eps6.shape[0], self.n_planes))
-        d = np.empty(self.n_planes)
-        lam = np.empty(6)
         p = self.params
-        for i in range(eps6.shape[0]):  # small helper for output, not on the hot path
-            _k._lambda6(eps6[i], p.beta, p.alpha_hat, p.beta_hat, lam)
-            _k._plane_strengths(self._nn6, self._om6, lam, self._coeffs, p.eta0, out[i], d)
+        out = _k.strengths(self._nn6, self._om6, self._coeffs, p.eta0, p.beta, p.alpha_hat, p.beta_hat,
+                           _k.to_mandel(np.ascontiguousarray(strain)))
         return out[0] if squeeze else out
+
+    def mobilised_ratios(self, stress, strain=None) -> np.ndarray:
+        """etah_a = tau_a / N(sigma_N,a + c_a / eta_f,a) of every plane, (N, M), for stresses (N, 3, 3)
+        (tension +) and total strains (N, 3, 3) (default 0; they set eta_f with induced anisotropy)."""
+        sig = np.ascontiguousarray(np.asarray(stress, dtype=float).reshape(-1, 3, 3))
+        eps = np.zeros_like(sig) if strain is None else np.asarray(strain, dtype=float).reshape(-1, 3, 3)
+        ef = self.friction_coefficients(eps)
+        return _k.ratios(self._law, _k.to_mandel(sig), np.ascontiguousarray(ef))
 
     # ----------------------------------------------------------------------------- state
     def initial_state(self, n_points: int, stress=None, *, elastic_margin: float = 0.05,
@@ -199,12 +194,12 @@ class CPAModel:
 
         Each plane starts at the hardening level of that stress: kappa_a = A e_a / (zeta eta_f,a - e_a)
         with e_a = (1 + elastic_margin) etah_a, etah_a the mobilised ratio of ``stress`` (0 for an
-        isotropic stress), capped at 0.98 zeta eta_f,a. The default margin of 5 % gives an in-situ
-        (e.g. K0) state a small elastic range: a sand consolidated under that stress reloads elastically
-        at first, and a boundary-value problem does not start with every plane of every point exactly
-        on its loading/unloading kink (where Newton's method converges poorly). ``elastic_margin=0``
-        puts every plane exactly on its hardening curve. The plastic strain and the total strain start
-        at zero. A stress that reaches the failure surface on some plane is rejected.
+        isotropic stress), capped at 0.98 of the largest ratio the hardening branch reaches. The default
+        margin of 5 % gives an in-situ (e.g. K0) state a small elastic range: a sand consolidated under
+        that stress reloads elastically at first, and a boundary-value problem does not start with every
+        plane of every point exactly on its loading/unloading kink. ``elastic_margin=0`` puts every plane
+        exactly on its hardening curve. The plastic strain and the total strain start at zero. A stress
+        with mean tension or at the failure surface of some plane is rejected.
 
         ``element_size`` (scalar or (N,) [m], default t): the size h of the finite element each point
         belongs to, which the post-peak softening law needs (``softening_slip > 0``): beyond the peak the
@@ -226,42 +221,33 @@ class CPAModel:
         M = self.n_planes
         kappa = np.zeros((n, M))
         if n and np.any(sig):
-            t = np.einsum("nij,aj->nai", sig, self.normals)
-            sN = -np.einsum("nai,ai->na", t, self.normals)
-            ts = t + sN[..., None] * self.normals[None]
-            tau = np.linalg.norm(ts, axis=-1)
-            c = self._cohesion[None, :]
-            zef = self.params.zeta * self.friction_coefficients()[None, :]
-            bad_tension = (sN <= 0) & (tau > c + 1e-12 * np.abs(sig).max(axis=(1, 2))[:, None])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                etah = np.where(sN > 0, (tau - c) / np.where(sN > 0, sN, 1.0), 0.0)
-            bad = bad_tension | (etah >= zef * (1 - 1e-9))
+            p = self.params
+            tension = np.trace(sig, axis1=1, axis2=2) > 0.0
+            etah = self.mobilised_ratios(sig)
+            ef = self.friction_coefficients()[None, :]
+            barrier = ef if p.softening_slip > 0 else p.zeta * ef
+            bad = tension | (etah >= barrier * (1 - 1e-9)).any(axis=1)
             if bad.any():
-                i = int(np.flatnonzero(bad.any(axis=1))[0])
+                i = int(np.flatnonzero(bad)[0])
                 raise ValueError(
-                    f"initial stress: {int(bad.any(axis=1).sum())} point(s) are at or beyond the failure surface "
-                    f"of some plane (first: point {i}); allowed: stresses strictly inside the CPA strength envelope"
+                    f"initial stress: {int(bad.sum())} point(s) have a mean tension or are at or beyond the "
+                    f"failure surface of some plane (first: point {i}); allowed: compressive stresses strictly "
+                    "inside the CPA strength envelope"
                 )
-            # round-off shear (|tau| ~ 1e-16 |sigma|) counts as none, as in the kernel
-            tiny = 1e-13 * np.abs(sig).max(axis=(1, 2))[:, None]
-            etah = np.where(tau <= tiny, 0.0, np.maximum(etah, 0.0))
-            # the reached level sits `elastic_margin` above the initial mobilisation (capped below the
-            # barrier): a small elastic range around the in-situ stress
-            # (below the peak eta_f when the planes can soften)
-            cap = 0.98 * (zef / self.params.zeta if self.params.softening_slip > 0 else zef)
-            level = np.minimum(etah * (1.0 + elastic_margin), np.maximum(etah, cap))
-            kappa = self.params.A * level / (zef - level)
+            level = np.minimum(etah * (1.0 + elastic_margin), np.maximum(etah, 0.98 * barrier))
+            kappa = p.A * level / (p.zeta * ef - level)
         return {
             "strain": np.zeros((n, 3, 3)),
             "plastic_strain": np.zeros((n, 3, 3)),
             "kappa": kappa,
             "status": np.zeros(n, dtype=np.int8),
             "step_ratio": np.ones(n),
-            "substeps": np.ones(n, dtype=np.int32),
             "iterations": np.zeros(n, dtype=np.int32),
-            "tension_cutoff": np.zeros(n, dtype=bool),
+            "continuation": np.zeros(n, dtype=np.int32),
+            "loading": np.zeros((n, M), dtype=bool),
+            "cutoff_opening": np.zeros(n),
             "mobilised_ratio": np.zeros(n),
-            "predictor": np.zeros((n, 6, 6)),
+            "near_apex": np.abs(sig).max(axis=(1, 2)) <= 10.0 * self.params.apex_stress,
             "element_size": h,
         }
 
@@ -291,17 +277,22 @@ class CPAModel:
         -------
         stress : (N, 3, 3) [kPa]
         state : dict (new arrays): strain, plastic_strain (N,3,3); kappa (N,M) [m]; status (N,) int8;
-            step_ratio, mobilised_ratio (N,); substeps, iterations (N,) int32; tension_cutoff (N,) bool;
-            predictor (N,6,6): the Mandel tangent of the point's last plastic step, used only as the
-            starting guess of the next Newton solve (a missing key is allowed and means none).
+            step_ratio (N,) (the fraction of the increment a failed point reached; 1 otherwise);
+            iterations, continuation (N,) int32 (local Newton iterations, and how often the
+            continuation halved the increment); loading (N, M) bool (planes whose slip grew in the step);
+            cutoff_opening (N,) accumulated plastic volumetric opening at the tension cut-off;
+            mobilised_ratio (N,) the largest etah_a / eta_f,a; near_apex (N,) bool (every stress
+            component below 10 apex_rounding, where the rounding changes the law by more than 1 %);
+            element_size (N,) [m].
         tangent : (N, 3, 3, 3, 3) d stress / d d_strain [kPa], or None.
         """
         de, sig = check_batch(d_strain, stress)
         n = de.shape[0]
         check_state(state, n, _STATE_KEYS)
-        if state["kappa"].shape != (n, self.n_planes):
+        M = self.n_planes
+        if state["kappa"].shape != (n, M):
             raise ValueError(
-                f"state['kappa']: shape {state['kappa'].shape} does not match ({n}, {self.n_planes}) planes of "
+                f"state['kappa']: shape {state['kappa'].shape} does not match ({n}, {M}) planes of "
                 f"rule {self.rule!r}; was the state made by another model?"
             )
         sig6 = _k.to_mandel(sig)
@@ -310,24 +301,16 @@ class CPAModel:
         kap_n = np.ascontiguousarray(state["kappa"], dtype=float)
         sig_out = np.empty_like(sig6)
         kap_out = np.empty_like(kap_n)
-        D = np.empty((n, 6, 6)) if tangent else np.empty((n, 0, 0))
+        D = np.empty((n, 6, 6))
+        loading = np.empty((n, M), dtype=np.bool_)
         status = np.empty(n, dtype=np.int8)
-        substeps = np.empty(n, dtype=np.int32)
         iterations = np.empty(n, dtype=np.int32)
-        cutoff = np.empty(n, dtype=np.bool_)
+        halvings = np.empty(n, dtype=np.int32)
+        reached = np.empty(n)
+        opening = np.empty(n)
         mobilised = np.empty(n)
         o = self.options
-        iopt = np.array([o.maxit, o.max_substep_level, 1 if tangent else 0], dtype=np.int64)
-        fopt = np.array([o.tol, o.tol_hardening, o.cutoff_stiffness])
-        p = self.params
-        if tangent:
-            D_arg = D
-        else:
-            D_arg = np.empty((n, 6, 6))  # untouched scratch of the right shape (kernel writes nothing)
-        pred = state.get("predictor")
-        if pred is None or pred.shape != (n, 6, 6):
-            pred = np.zeros((n, 6, 6))
-        pred = np.ascontiguousarray(pred, dtype=float)
+        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent))
         prev_threads = None
         if self.threads is not None:
             import numba
@@ -335,11 +318,8 @@ class CPAModel:
             prev_threads = numba.get_num_threads()
             numba.set_num_threads(int(self.threads))
         try:
-            _k.cpa_batch(sig6, de6, eps6, kap_n, self.normals, self._nn6, self.weights, self._cohesion, self._om6,
-                         self._coeffs, p.eta0, p.beta, p.alpha_hat, p.beta_hat, p.zeta, p.A, 1.0 / p.t,
-                         p.eta_c_ratio, self._comp, self._stiff,
-                         iopt, fopt, sig_out, kap_out, D_arg, status, substeps, iterations, cutoff, mobilised, pred,
-                         p.kappa_instability, self._softening_scale(state, n), p.residual_ratio)
+            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), sig_out, kap_out,
+                         D, loading, status, iterations, halvings, reached, opening, mobilised)
         finally:
             if prev_threads is not None:
                 import numba
@@ -347,26 +327,24 @@ class CPAModel:
                 numba.set_num_threads(prev_threads)
         new_sig = _k.from_mandel(sig_out)
         # plastic strain increment: the part of d_eps the elastic compliance does not explain (exact at
-        # the converged residual; the opening at the tension cut-off)
-        d_eps_p6 = de6 - sig_out @ self._comp.T + sig6 @ self._comp.T
-        d_eps_p = _k.from_mandel(np.ascontiguousarray(d_eps_p6))
+        # the converged residual; it includes the cut-off's opening)
+        d_eps_p = _k.from_mandel(np.ascontiguousarray(de6 - (sig_out - sig6) @ self._comp.T))
         failed = status == STATUS_FAILED
         ok = ~failed
-        step_ratio = np.ones(n)
-        step_ratio[status == STATUS_SUBSTEPPED] = 1.0 / np.maximum(substeps[status == STATUS_SUBSTEPPED], 1)
-        step_ratio[failed] = 0.25 / (1 << o.max_substep_level) if o.max_substep_level < 3 else 0.25
+        step_ratio = np.where(failed, np.where(reached > 0, 0.9 * reached, 0.25), 1.0)
         new_state = {
             "strain": np.where(ok[:, None, None], state["strain"] + de, state["strain"]),
             "plastic_strain": np.where(ok[:, None, None], state["plastic_strain"] + d_eps_p, state["plastic_strain"]),
             "kappa": kap_out,
             "status": status,
             "step_ratio": step_ratio,
-            "substeps": substeps,
             "iterations": iterations,
-            "tension_cutoff": cutoff,
-            "mobilised_ratio": mobilised,
-            # Mandel tangent of the last plastic step: the Newton predictor of the next one
-            "predictor": (np.where(((iterations > 0) & ok & ~cutoff)[:, None, None], D, pred) if tangent else pred),
+            "continuation": halvings,
+            "loading": loading,
+            "cutoff_opening": np.asarray(state.get("cutoff_opening", np.zeros(n))) + np.where(ok, opening, 0.0),
+            "mobilised_ratio": np.where(ok, mobilised, state.get("mobilised_ratio", np.zeros(n))),
+            # within the rounded apex, where N differs from the normal stress by more than 1 %
+            "near_apex": np.abs(sig_out).max(axis=1) <= 10.0 * self.params.apex_stress,
         }
         if "element_size" in state:
             new_state["element_size"] = state["element_size"]
@@ -410,8 +388,9 @@ class CPAModel:
 def replay(path, **model_options):
     """Re-run the failed points stored in a replay file; returns (model, stress, state, tangent).
 
-    ``model_options`` override the stored integration options (e.g. ``max_substep_level=10``) to
-    study whether more sub-steps would have saved the point.
+    ``model_options`` override the stored integration options (e.g. ``max_halvings=20``) to study
+    whether a finer continuation would have saved the point; stored options this version does not
+    know (files of older versions) are ignored.
     """
     import json
 
@@ -421,9 +400,7 @@ def replay(path, **model_options):
     with np.load(path, allow_pickle=False) as f:
         data = {k: f[k] for k in f.files}
     params = parameters_from_dict(json.loads(str(data["params_json"])), source=str(path))
-    options = json.loads(str(data["options_json"]))
-    options.pop("barrier", None)
-    options.pop("tol_hardening", None)
+    options = {k: v for k, v in json.loads(str(data["options_json"])).items() if k in _Options.__dataclass_fields__}
     options.update(model_options)
     model = CPAModel(params, rule=str(data["rule"]), axes=data["axes"], **options)
     state = {k[len("state__"):]: v for k, v in data.items() if k.startswith("state__")}
@@ -432,4 +409,4 @@ def replay(path, **model_options):
 
 
 # re-exported status codes for convenience
-STATUS = {"ok": STATUS_OK, "substepped": STATUS_SUBSTEPPED, "failed": STATUS_FAILED}
+STATUS = {"ok": STATUS_OK, "failed": STATUS_FAILED}

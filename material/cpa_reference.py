@@ -1,55 +1,256 @@
-"""Plain-numpy reference of the CPA law's equations, for testing the numba kernel.
+"""Plain-numpy reference of the whole CPA one-point update, for testing the numba kernel point by point.
 
-Slow and simple on purpose: full 3x3 tensors, one Gauss point, vectorised over planes only. It
-evaluates the strain residual of the implicit scheme (MODEL.md, "Integration at a Gauss point")
+Slow and simple on purpose, and independent of the kernel's algebra: full 3x3 tensors instead of Mandel
+vectors, the residual written once (:func:`residual`) and every derivative taken by the complex step
+(d F / d x = Im F(x + i h e) / h, exact to round-off for these analytic expressions) instead of the
+kernel's hand-derived Jacobians and its condensation of the slips. It solves the same equations
+(``docs/cpa_law.md``, section 3) on the same branch: Newton from the start of the step, a plane on its
+kink taking the loading branch, halving the fraction of the increment when Newton fails. The tangent is
+the implicit-function derivative of the converged equations, again by the complex step.
 
-    R(sigma) = C^-1 : (sigma - sigma_n) + (1/t) sum_a w_a sym(dg_a (x) n_a) - d_eps
-
-so a test can check that the kernel's converged stress zeroes it, independently of the kernel's
-Jacobian, Mandel algebra and sub-stepping.
+Unknowns x = (sigma (6 components xx yy zz yz xz xy), dkappa of the strong planes, dlambda of the
+cut-off); equations F = (strain residual (6), Fischer-Burmeister residuals of the strong planes, of the
+cut-off). Weak planes (kappa_n <= A, and below the softening peak) take their slip in closed form.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from material.anisotropy import induced_tensor, series
-from material.elastic import isotropic_compliance
+__all__ = ["update_point", "residual", "ReferenceFailure"]
+
+_IJ = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
+_H = 1e-30  # complex step
+_KINK = 1e-12
 
 
-def plane_strengths(model, strain: np.ndarray) -> np.ndarray:
-    """eta_f of every plane of ``model`` for the total strain (3, 3) (eqs. 2.4, 3.14, 3.15)."""
-    p = model.params
-    omega = (model.axes @ np.diag([p.omega1, -2 * p.omega1, p.omega1]) @ model.axes.T
-             + induced_tensor(p.beta, strain, p.alpha_hat, p.beta_hat))
-    x = np.einsum("ai,ij,aj->a", model.normals, omega, model.normals)
-    return p.eta0 * series(x, p.a)
+class ReferenceFailure(RuntimeError):
+    """The reference solver found no solution (Newton and its halvings failed)."""
 
 
-def residual(model, sigma, sigma_n, d_strain, kappa_n, strain_end) -> np.ndarray:
-    """Strain residual (3, 3) of one (sub)step at the trial stress ``sigma`` (all tension +)."""
-    p = model.params
-    n = model.normals
-    w = model.weights
-    c = model._cohesion
-    eta_f = plane_strengths(model, strain_end)
-    t = n @ sigma.T                                   # traction t_a = sigma n_a
-    sigma_N = -np.einsum("ai,ai->a", t, n)            # compression positive
-    ts = t + sigma_N[:, None] * n                     # shear traction
-    tau = np.linalg.norm(ts, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        etah = (tau - c) / sigma_N                    # mobilised ratio
-        s = ts / tau[:, None]
-    zef = p.zeta * eta_f
-    eta_reached = zef * kappa_n / (p.A + kappa_n)     # (2.16)
-    loading = (sigma_N > 0) & (tau > 0) & (etah >= eta_reached)
-    dkappa = np.zeros_like(tau)
-    kap = p.A * etah[loading] / (zef[loading] - etah[loading])
-    dkappa[loading] = np.maximum(kap - kappa_n[loading], 0.0)
-    q = np.where(loading, tau / (sigma_N + c / eta_f), 0.0)
-    dil = p.eta_c_ratio * eta_f - q                   # d psi / d sigma_N (2.17)
-    dg = dkappa[:, None] * (np.where(loading[:, None], s, 0.0) - dil[:, None] * n)  # (2.7)
-    d_eps_p = np.einsum("a,ai,aj->ij", w, dg, n) / p.t
-    d_eps_p = 0.5 * (d_eps_p + d_eps_p.T)             # (2.9)
-    S = isotropic_compliance(p.E, p.nu)
-    return np.einsum("ijkl,kl->ij", S, sigma - sigma_n) + d_eps_p - d_strain
+def _sym(v):
+    a = np.zeros((3, 3), dtype=v.dtype)
+    for k, (i, j) in enumerate(_IJ):
+        a[i, j] = a[j, i] = v[k]
+    return a
+
+
+def _six(a):
+    return np.array([a[i, j] for i, j in _IJ])
+
+
+class _Law:
+    """The law's constants for one CPAModel (global frame, 3x3 tensors)."""
+
+    def __init__(self, model):
+        from material._cpa_plane import APEX_ROUNDING
+
+        p = model.params
+        self.p = p
+        self.n = model.normals
+        self.w = model.weights
+        self.c = model._cohesion
+        self.omega = model.axes @ np.diag([p.omega1, -2 * p.omega1, p.omega1]) @ model.axes.T
+        self.lam = p.E * p.nu / ((1 + p.nu) * (1 - 2 * p.nu))
+        self.G = p.E / (2 * (1 + p.nu))
+        self.K = p.bulk_modulus
+        self.b = APEX_ROUNDING * p.apex_stress
+
+    def eta_f(self, strain):
+        """eta_f of every plane for the total strain (3, 3), complex allowed (eqs. 2.4, 3.8, 3.15)."""
+        p = self.p
+        dev = strain - np.trace(strain) / 3 * np.eye(3)
+        if p.beta_hat == 0.0 and p.alpha_hat > 0.0:
+            lam = p.beta * dev
+        else:
+            nrm = np.sqrt(np.sum(dev * dev))
+            if nrm.real == 0.0:
+                lam = 0.0 * dev
+            else:
+                ne = dev / nrm
+                sq = ne @ ne
+                sq = sq - np.trace(sq) / 3 * np.eye(3)
+                d = p.alpha_hat * ne + p.beta_hat * sq
+                lam = p.beta * nrm * d / np.sqrt(np.sum(d * d))
+        x = np.einsum("ai,ij,aj->a", self.n, self.omega + lam, self.n)
+        acc = np.zeros_like(x)
+        for coef in reversed(tuple(p.a)):
+            acc = (acc + coef) * x
+        return p.eta0 * (1 + x + x * acc)
+
+    def hardening(self, kappa, ef, soft):
+        """eta(kappa) (2.16), with the softening branch past kappa* where soft > 0."""
+        p = self.p
+        out = p.zeta * ef * kappa / (p.A + kappa)
+        if soft > 0:
+            post = kappa.real >= p.kappa_instability
+            x = 1 + (kappa - p.kappa_instability) / soft
+            out = np.where(post, ef * (p.residual_ratio + (1 - p.residual_ratio) / np.where(post, x, 1.0)), out)
+        return out
+
+    def planes(self, sigma, ef):
+        """Mobilised ratio, shifted normal stress and flow vectors (M, 3) of every plane at sigma."""
+        p = self.p
+        t = self.n @ sigma.T
+        sN = -np.einsum("ai,ai->a", t, self.n)
+        ts = t + sN[:, None] * self.n
+        T = np.sqrt(np.sum(ts * ts, axis=1) + self.b ** 2)
+        st = sN + self.c / ef + p.apex_stress
+        ratio = T / st
+        pc = p.compaction_stress
+        wc = st * st / (st * st + pc * pc) if pc > 0 else 1.0
+        g = ts / T[:, None] + (ratio - p.eta_c_ratio * ef * wc)[:, None] * self.n  # (2.7, 2.17)
+        return ratio, st, g
+
+
+def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong):
+    """F(x) and the slips of all planes for the unknowns x (see the module docstring)."""
+    p = law.p
+    ns = strong.size
+    sig = _sym(x[:6])
+    dl = x[6 + ns]
+    de = _sym(de6)
+    ef = law.eta_f(eps_n + de)
+    ratio, st, g = law.planes(sig, ef)
+    zef = p.zeta * ef
+    barrier = np.where(np.full(ef.shape, soft > 0), ef, zef)
+    weak = np.ones(ratio.shape, bool)
+    weak[strong] = False
+    if np.any(st.real <= 0) or np.any((ratio.real >= barrier.real * (1 - 1e-12)) & weak):
+        return None, None
+    kr = p.A * ratio / (zef - ratio) - kap_n  # (2.16) inverted
+    on = kr.real >= -_KINK * (p.A + kap_n)  # loading branch at the kink
+    dk = np.where(on, np.where(kr.real > 0, kr, kr - kr.real), 0.0 * kr)
+    dk = dk.astype(np.result_type(dk, x))
+    dk[strong] = x[6:6 + ns]
+    if np.any(kap_n[strong] + dk[strong].real <= -0.5 * p.A):
+        return None, None
+    ep = np.einsum("a,ai,aj->ij", law.w * dk, g, law.n) * (1 / p.t)
+    ep = 0.5 * (ep + ep.T)  # (2.9)
+    tr = np.trace(sig - sig_n)
+    S = ((1 + p.nu) * (sig - sig_n) - p.nu * tr * np.eye(3)) / p.E
+    R = S + ep + dl / 3 * np.eye(3) - de
+    u = dk[strong] / p.A
+    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) - ratio[strong]
+    phi = _fb(u, v)
+    phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
+    return np.concatenate([_six(R), phi, phi0]), dk
+
+
+def _fb(u, v):
+    """Fischer-Burmeister function, complex-step safe; at the kink (0, 0) its loading branch (Phi ~ v)."""
+    r = np.sqrt(u * u + v * v + 0j) if np.iscomplexobj(u) or np.iscomplexobj(v) else np.sqrt(u * u + v * v)
+    out = u + v - r
+    kink = (np.abs(np.real(u)) <= _KINK) & (np.abs(np.real(v)) <= _KINK)
+    if np.any(kink):
+        out = np.where(kink, np.real(out) + 1j * np.imag(v) if np.iscomplexobj(out) else np.real(out), out)
+    return out
+
+
+def _jacobian(law, x, args, scale):
+    n = x.size
+    J = np.empty((n, n))
+    for j in range(n):
+        xc = x.astype(complex)
+        h = _H * max(abs(x[j]), 1e-8 if j >= 6 else 1e-3)
+        xc[j] += 1j * h
+        J[:, j] = residual(law, xc, *args)[0].imag / h * scale
+    return J
+
+
+def _newton(law, x, args, scale, tol, maxit):
+    f, _ = residual(law, x, *args)
+    if f is None:
+        return False, x
+    f = f * scale
+    merit = 0.5 * f @ f
+    for _ in range(maxit + 1):
+        if np.abs(f).max() <= tol:
+            return True, x
+        try:
+            dx = np.linalg.solve(_jacobian(law, x, args, scale), -f)
+        except np.linalg.LinAlgError:
+            return False, x
+        a = 1.0
+        for _ls in range(40):
+            ft, _ = residual(law, x + a * dx, *args)
+            if ft is not None:
+                ft = ft * scale
+                if 0.5 * ft @ ft <= (1 - 1e-4 * a) * merit:
+                    break
+            a *= 0.5
+        else:
+            return False, x
+        x, f, merit = x + a * dx, ft, 0.5 * ft @ ft
+    return False, x
+
+
+def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float = 1e-11, maxit: int = 40,
+                 max_halvings: int = 12):
+    """One point's update by the reference algorithm.
+
+    Parameters
+    ----------
+    model : material.CPAModel
+    d_strain, stress : (3, 3) or (N, 3, 3) tension positive (``point`` picks one of a batch).
+    state : the state dict of ``model`` (batch), read at ``point``.
+
+    Returns
+    -------
+    stress (3, 3), kappa (M,), opening dlambda of the cut-off, tangent (3, 3, 3, 3).
+    Raises :class:`ReferenceFailure` when no solution is found.
+    """
+    law = _Law(model)
+    p = law.p
+    de = np.asarray(d_strain, float).reshape(-1, 3, 3)[point]
+    sig_n = np.asarray(stress, float).reshape(-1, 3, 3)[point]
+    eps_n = np.asarray(state["strain"], float)[point]
+    kap_n = np.asarray(state["kappa"], float)[point]
+    soft = 0.0
+    if p.softening_slip > 0:
+        h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)))[point]
+        soft = p.softening_slip * p.t / h if model.regularise else p.softening_slip
+    strong = np.flatnonzero((kap_n > p.A) | ((soft > 0) & (kap_n >= p.kappa_instability)))
+    ns = strong.size
+    de6 = _six(de)
+    r_scale = np.abs(de6).max() + max(np.abs(sig_n).max(), p.apex_stress) / p.E
+    scale = np.ones(6 + ns + 1)
+    scale[:6] /= r_scale
+    scale[-1] /= r_scale
+    # elastic trial
+    trial = sig_n + 2 * law.G * de + law.lam * np.trace(de) * np.eye(3)
+    ef = law.eta_f(eps_n + de)
+    ratio, st, _ = law.planes(trial, ef)
+    eta_n = law.hardening(kap_n, ef, soft)
+    stiff = np.einsum("ij,kl->ijkl", np.eye(3), np.eye(3)) * law.lam + law.G * (
+        np.einsum("ik,jl->ijkl", np.eye(3), np.eye(3)) + np.einsum("il,jk->ijkl", np.eye(3), np.eye(3)))
+    if np.trace(trial) <= 0 and np.all(st > 0) and np.all(ratio <= eta_n):
+        return trial, kap_n.copy(), 0.0, stiff
+    x_done = np.concatenate([_six(sig_n), np.zeros(ns), [0.0]])
+    lam_done, h, halvings = 0.0, 1.0, 0
+    while lam_done < 1.0:
+        lam = min(1.0, lam_done + h)
+        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong), scale, tol, maxit)
+        if ok:
+            lam_done, x_done, h = lam, x, min(2 * h, 1.0)
+        else:
+            h *= 0.5
+            halvings += 1
+            if halvings > max_halvings:
+                raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
+    args = (sig_n, de6, eps_n, kap_n, soft, strong)
+    F, dk = residual(law, x_done, *args)
+    J = _jacobian(law, x_done, args, scale)
+    # d F / d d_eps by the complex step on the increment (tensor components, shear counted once)
+    Fe = np.empty((x_done.size, 6))
+    for j in range(6):
+        dc = de6.astype(complex)
+        dc[j] += 1j * _H
+        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong)[0].imag / _H * scale
+    dxde = -np.linalg.solve(J, Fe)[:6]  # d sigma_ij / d d_eps_kl with d_eps_kl and d_eps_lk moved together
+    tangent = np.zeros((3, 3, 3, 3))
+    for a, (i, j) in enumerate(_IJ):
+        for b, (k, l) in enumerate(_IJ):
+            v = dxde[a, b] * (1.0 if k == l else 0.5)
+            tangent[i, j, k, l] = tangent[j, i, k, l] = tangent[i, j, l, k] = tangent[j, i, l, k] = v
+    return _sym(x_done[:6]), kap_n + np.maximum(dk.real, 0.0), x_done[-1], tangent

@@ -27,6 +27,11 @@ __all__ = [
 ]
 
 _FILE_FORMAT = "femgran-cpa-parameters"
+#: Default apex stress of the planes [kPa] (:attr:`CPAParameters.apex_stress`; its choice is measured
+#: in ``docs/cpa_law.md``).
+APEX_STRESS_KPA = 0.05
+#: Default normal stress below which the planes' compaction fades [kPa] (:attr:`CPAParameters.compaction_stress`).
+COMPACTION_STRESS_KPA = 2.0
 _FILE_VERSION = 1
 
 
@@ -80,6 +85,19 @@ class CPAParameters:
     residual_ratio : float
         r = eta_residual / eta_f of the softening law, in (0, 1] [-]; default 0.65, the compaction-dilation
         transition eta_c / eta_f of Table 3 (the critical state: no more dilation in the band).
+    apex_stress : float
+        c_a [kPa], > 0: the normal tension at which every plane's loading cone has its apex. The
+        mobilised ratio is sqrt(tau^2 + b^2) / (sigma_N + c / eta_f + c_a), b = c_a / 10, in place of
+        (tau - c) / sigma_N: each loading surface is a convex cone with a rounded tip in tension, so the
+        law is smooth through zero stress, a stress-free plane is mobilised to 0.1 and the strength at a
+        normal stress sigma_N exceeds the thesis's by about c_a / sigma_N (``docs/cpa_law.md``; 0.05 kPa:
+        0.3 % at 18 kPa, the critical plane of a triaxial test at p0 = 10 kPa).
+    compaction_stress : float
+        p_c [kPa], >= 0: the compaction-dilation transition of a plane is eta_c w with
+        w = s^2 / (s^2 + p_c^2), s = sigma_N + c / eta_f + c_a, so a plane compacts as the thesis says at
+        working stresses (w = 0.99 at s = 10 p_c) and not at all as its normal stress vanishes, where
+        the strain-driven update of a contractive plane set has no solution (``docs/cpa_law.md``).
+        0 keeps the thesis's flow rule at every stress.
     """
 
     E: float
@@ -99,6 +117,8 @@ class CPAParameters:
     beta_hat: float = 0.0
     softening_slip: float = 0.0
     residual_ratio: float = 0.65
+    apex_stress: float = APEX_STRESS_KPA
+    compaction_stress: float = COMPACTION_STRESS_KPA
     name: str = field(default="custom", compare=False)
 
     def __post_init__(self) -> None:
@@ -199,6 +219,9 @@ _FIELD_SPECS = (
     _FieldSpec("softening_slip", "m", "softening_slip >= 0 (finite; 0: no softening)",
                lambda v: math.isfinite(v) and v >= 0),
     _FieldSpec("residual_ratio", "-", "0 < residual_ratio <= 1", lambda v: 0.0 < v <= 1.0),
+    _FieldSpec("apex_stress", "kPa", "apex_stress > 0 (finite)", lambda v: math.isfinite(v) and v > 0),
+    _FieldSpec("compaction_stress", "kPa", "compaction_stress >= 0 (finite; 0: the thesis's flow rule)",
+               lambda v: math.isfinite(v) and v >= 0),
 )
 FIELD_NAMES = tuple(s.name for s in _FIELD_SPECS) + ("name",)
 UNITS = {s.name: s.unit for s in _FIELD_SPECS}

@@ -1,16 +1,23 @@
-"""The CPA Gauss-point routine: elasticity, consistent tangent, objectivity, robustness, bad input."""
+"""The CPA Gauss-point routine: elasticity, the kernel against the numpy reference, consistent tangent,
+continuity through kinks and the apex, objectivity, robustness on hard points, bad input."""
+
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from material import load_preset
 from material.anisotropy import axes_from_alpha
-from material.base import STATUS_FAILED, STATUS_OK, STATUS_SUBSTEPPED
+from material.base import STATUS_FAILED, STATUS_OK
 from material.cpa import CPAModel, replay
-from material.cpa_reference import residual
+from material.cpa_reference import update_point
+from material.parameters import parameters_from_dict
 
+DATA = Path(__file__).parent / "data"
 # a generic strain increment (no component zero, so no plane sits exactly on tau = 0)
 DE = np.array([[0.8e-3, 1e-4, 2e-4], [1e-4, 0.6e-3, -1.5e-4], [2e-4, -1.5e-4, -2e-3]])
+DE_SHEAR = np.diag([0.8e-3, -1e-3, 0.0])  # compression along y, strain driven
 
 
 def _loaded(model, n_steps, de=DE, p0=100.0):
@@ -22,7 +29,7 @@ def _loaded(model, n_steps, de=DE, p0=100.0):
     return sig, st
 
 
-def _fd_tangent(model, sig, st, de, h=1e-7):
+def _fd_tangent(model, sig, st, de, h=1e-8):
     D = np.zeros((3, 3, 3, 3))
     for k in range(3):
         for l in range(k, 3):
@@ -37,6 +44,14 @@ def _fd_tangent(model, sig, st, de, h=1e-7):
     return D
 
 
+def _replay_file(name, **changes):
+    d = dict(np.load(DATA / name))
+    params = parameters_from_dict(json.loads(str(d["params_json"]))).replace(**changes)
+    model = CPAModel(params, rule=str(d["rule"]), axes=d["axes"])
+    state = {k[len("state__"):]: v for k, v in d.items() if k.startswith("state__")}
+    return model, d, state
+
+
 def test_isotropic_compression_is_elastic_with_bulk_modulus():
     p = load_preset("ottawa_c109")
     model = CPAModel(p, axes=axes_from_alpha(30.0))
@@ -48,11 +63,45 @@ def test_isotropic_compression_is_elastic_with_bulk_modulus():
     K = p.E / (3 * (1 - 2 * p.nu))
     dp = -np.trace(new - sig, axis1=1, axis2=2) / 3
     np.testing.assert_allclose(dp, K * 3e-3 * np.arange(1, n + 1), rtol=1e-13)
-    assert np.all(st2["kappa"] == 0.0)
+    np.testing.assert_array_equal(st2["kappa"], st["kappa"])
     assert np.abs(st2["plastic_strain"]).max() < 1e-15
-    assert np.all(st2["status"] == STATUS_OK)
-    # the tangent is the elastic one: K on the volumetric part
+    assert np.all(st2["status"] == STATUS_OK) and not st2["loading"].any()
     assert D[0, 0, 0, 0, 0] + 2 * D[0, 0, 0, 1, 1] == pytest.approx(3 * K, rel=1e-12)
+
+
+# every variant of the law, along a strain path, against the plain-numpy reference of the whole update
+VARIANTS = {
+    "inherent": (dict(), "ottawa_c109", 30.0, DE, 25, None),
+    "induced": (dict(beta=5.0), "ottawa_c109_induced", 60.0, DE, 25, None),
+    "coaxial": (dict(beta=5.0, alpha_hat=0.8, beta_hat=0.5), "ottawa_c109_induced", 20.0, DE, 20, None),
+    "cohesion": (dict(c0=1.0, omega1_c=0.1, b=(0.2,)), "ottawa_c109", 45.0, DE, 25, None),
+    "softening": (dict(zeta=1.05, softening_slip=0.01), "ottawa_c109", 0.0, DE_SHEAR, 200, 0.012),
+    "compaction": (dict(compaction_stress=20.0), "ottawa_c109", 10.0, DE, 20, None),
+}
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_kernel_equals_the_numpy_reference_point_by_point(variant):
+    """Stress, slips and tangent of the numba kernel against :mod:`material.cpa_reference` (3x3 algebra,
+    complex-step Jacobians, no condensation) at every few steps of a path, from the elastic range to
+    near failure (and past the peak for the softening law)."""
+    changes, preset, alpha, de, n, h = VARIANTS[variant]
+    model = CPAModel(load_preset(preset).replace(**changes), axes=axes_from_alpha(alpha))
+    sig = -100.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0], element_size=h)
+    checked = 0
+    for k in range(n):
+        s0, st0 = sig, st
+        sig, st, D = model.update(de[None], sig, st)
+        assert st["status"][0] == STATUS_OK
+        if k % max(1, n // 6) == 0 or k == n - 1:
+            s_ref, kappa_ref, _, D_ref = update_point(model, de, s0, st0)
+            assert np.abs(sig[0] - s_ref).max() <= 1e-10 * np.abs(s_ref).max()
+            assert np.abs(st["kappa"][0] - kappa_ref).max() <= 1e-9 * kappa_ref.max()
+            assert np.abs(D[0] - D_ref).max() <= 1e-9 * np.abs(D_ref).max()
+            checked += 1
+    assert checked >= 6
+    assert st["mobilised_ratio"][0] > 0.7  # the path goes well into the plastic range
 
 
 @pytest.mark.parametrize(
@@ -61,23 +110,17 @@ def test_isotropic_compression_is_elastic_with_bulk_modulus():
         ("ottawa_c109", 0.0, 0.0, 1),    # first plastic step from isotropic
         ("ottawa_c109", 0.0, 30.0, 10),  # hardening
         ("ottawa_c109", 0.0, 90.0, 40),  # near failure (mobilised ~0.9)
-        ("ottawa_c109_induced", 0.1, 45.0, 15),
         ("ottawa_c109_induced", 5.0, 60.0, 30),  # induced anisotropy: eta_f depends on strain
-        ("coaxial", 5.0, 20.0, 20),  # general coaxial law (3.8), alpha_hat = 0.8, beta_hat = 0.5
     ],
 )
 def test_consistent_tangent_matches_finite_differences(preset, beta, alpha, steps):
-    if preset == "coaxial":
-        params = load_preset("ottawa_c109_induced").replace(beta=beta, alpha_hat=0.8, beta_hat=0.5)
-    else:
-        params = load_preset(preset).replace(beta=beta)
-    model = CPAModel(params, axes=axes_from_alpha(alpha))
+    model = CPAModel(load_preset(preset).replace(beta=beta), axes=axes_from_alpha(alpha))
     sig, st = _loaded(model, steps - 1)
     _, st1, D = model.update(DE[None], sig, st)
     assert st1["status"][0] == STATUS_OK
     Dfd = _fd_tangent(model, sig, st, DE)
     err = np.abs(D[0] - Dfd).max() / np.abs(Dfd).max()
-    assert err < 1e-5, err
+    assert err < 1e-6, err
     if steps >= 40:
         assert st1["mobilised_ratio"][0] > 0.85
 
@@ -92,35 +135,165 @@ def test_tangent_in_elastic_unloading_is_hooke():
     np.testing.assert_allclose(D[0], isotropic_stiffness(6000.0, 0.33), rtol=1e-12, atol=1e-9)
 
 
-def test_substepped_tangent_is_consistent():
-    """With few Newton iterations allowed the routine sub-steps; the chain-rule tangent stays exact."""
-    p = load_preset("ottawa_c109_induced").replace(beta=5.0)
-    model = CPAModel(p, axes=axes_from_alpha(40.0), maxit=4)
-    big = 8 * DE
-    sig, st = _loaded(model, 2, de=big)
-    st.pop("predictor")  # no Newton predictor: the step starts from sigma_n and needs sub-steps
-    _, st1, D = model.update(big[None], sig, st)
-    assert st1["status"][0] == STATUS_SUBSTEPPED and st1["substeps"][0] > 1
-    assert st1["step_ratio"][0] < 1
-    err = np.abs(D[0] - _fd_tangent(model, sig, st, big)).max() / np.abs(D[0]).max()
-    assert err < 1e-5, err
+def test_update_is_continuous_through_a_switching_event_and_its_tangent_is_the_derivative():
+    """On a line d_eps(s) = d_eps0 + s h through the point where the first plane starts to load, the
+    stress is continuous, and the difference quotient on each side matches the returned tangent there
+    (the test of a deterministic, piecewise smooth update: ROBUSTNESS.md, section 1)."""
+    model = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0))
+    sig, st = _loaded(model, 8)
+    sig, st, _ = model.update(-0.4 * DE[None], sig, st)  # unload: every plane below its curve
+    h = DE / np.abs(DE).max()
+    s = np.linspace(0.0, 1e-3, 201)
+    out = np.array([model.update((si * h)[None], sig, st, tangent=False)[0][0] for si in s])
+    loading = np.array([model.update((si * h)[None], sig, st, tangent=False)[1]["loading"][0].any() for si in s])
+    k = int(np.argmax(loading))
+    assert 10 < k < 190  # the switch is inside the line
+    steps = np.abs(np.diff(out, axis=0)).max(axis=(1, 2))
+    assert steps.max() <= 1.5 * np.median(steps)  # no jump at the switch
+    ds = s[1] - s[0]
+    for j in (k - 5, k + 5):  # elastic side, loading side
+        _, _, D = model.update((s[j] * h)[None], sig, st)
+        slope = (out[j + 1] - out[j - 1]) / (2 * ds)
+        np.testing.assert_allclose(np.einsum("ijkl,kl->ij", D[0], h), slope, rtol=1e-5, atol=1e-9 * np.abs(slope).max())
 
 
-@pytest.mark.parametrize("alpha_hat,beta_hat", [(1.0, 0.0), (0.8, 0.5)])
-def test_converged_stress_zeroes_the_numpy_reference_residual(alpha_hat, beta_hat):
-    params = load_preset("ottawa_c109_induced").replace(beta=5.0, alpha_hat=alpha_hat, beta_hat=beta_hat)
-    model = CPAModel(params, axes=axes_from_alpha(20.0))
-    sig, st = _loaded(model, 12)
-    new, st1, _ = model.update(DE[None], sig, st)
-    r = residual(model, new[0], sig[0], DE, st["kappa"][0], st["strain"][0] + DE)
-    assert np.abs(r).max() < 1e-12 * 1e3  # strain units; |DE| ~ 2e-3
-    assert np.abs(r).max() / np.abs(DE).max() < 1e-9
-    # the reference residual is not trivially small: at the elastic trial it is of order d_eps
-    from material.elastic import isotropic_stiffness
+def test_update_is_continuous_through_the_apex():
+    """A point extended from 20 kPa through zero stress (where the thesis's cone is singular) and back:
+    every step integrates, the stress stays within the rounded apex (|sigma| of a few apex stresses) and
+    the mean stress never becomes tensile; compression brings the point back onto the cone."""
+    p = load_preset("ottawa_c109")
+    model = CPAModel(p)
+    sig = -20.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    de = np.array([[2e-3, 1e-4, 0.0], [1e-4, 1e-3, 0.0], [0.0, 0.0, 1.5e-3]])
+    for _ in range(20):
+        sig, st, D = model.update(de[None], sig, st)
+        assert st["status"][0] == STATUS_OK and np.isfinite(D).all()
+        assert np.trace(sig[0]) <= 1e-9
+    assert np.abs(sig[0]).max() < 20 * p.apex_stress and st["near_apex"][0]
+    assert st["cutoff_opening"][0] > 1e-2  # the extension has opened the sand
+    for _ in range(20):
+        sig, st, _ = model.update(-de[None], sig, st)
+        assert st["status"][0] == STATUS_OK
+    assert np.trace(sig[0]) < -100.0
 
-    trial = sig[0] + np.einsum("ijkl,kl->ij", isotropic_stiffness(6000.0, 0.33), DE)
-    r_trial = residual(model, 0.5 * (trial + new[0]), sig[0], DE, st["kappa"][0], st["strain"][0] + DE)
-    assert np.abs(r_trial).max() > 1e-5
+
+def test_volumetric_extension_opens_at_the_cutoff():
+    model = CPAModel("ottawa_c109")
+    sig = -10.0 * np.eye(3)[None]
+    st = model.initial_state(1, stress=sig[0])
+    new, st1, D = model.update(1e-2 * np.eye(3)[None], sig, st)  # volumetric extension beyond p = 0
+    assert np.trace(new[0]) == pytest.approx(0.0, abs=1e-9)
+    assert np.abs(new[0]).max() < 1e-3  # (a deviator of ~1e-4 kPa held by the anisotropic planes)
+    assert st1["status"][0] == STATUS_OK and np.isfinite(D).all()
+    K = 6000.0 / (3 * (1 - 2 * 0.33))
+    # the opening takes the misfit: eps_p = d_eps + S sigma_n (volumetric)
+    assert np.trace(st1["plastic_strain"][0]) == pytest.approx(3e-2 - 30.0 / (3 * K), rel=1e-9)
+    # (the planes, mobilised to 0.1 at zero stress, add a little plastic volume change of their own)
+    assert 0.98 < st1["cutoff_opening"][0] / np.trace(st1["plastic_strain"][0]) <= 1.0
+    back, st2, _ = model.update(-2e-2 * np.eye(3)[None], new, st1)
+    assert st2["status"][0] == STATUS_OK and np.trace(back[0]) < 0
+
+
+def test_apex_stress_changes_the_strength_by_its_ratio_to_the_normal_stress():
+    """The apex shift raises the strength of a plane at normal stress sigma_N by about c_a / sigma_N:
+    the analytic failure of one plane (the failure surface of the rounded law) against the cone."""
+    from material.cpa_reference import _Law
+
+    p = load_preset("ottawa_c109")
+    model = CPAModel(p)
+    law = _Law(model)
+    ef = law.eta_f(np.zeros((3, 3)))
+    for sN in (10.0, 100.0):
+        # the shear stress at which the plane's ratio reaches eta_f at normal stress sN (b^2 << tau^2)
+        tau = ef * (sN + p.apex_stress)
+        tau = np.sqrt(tau ** 2 - law.b ** 2)
+        np.testing.assert_allclose(tau / (ef * sN) - 1, p.apex_stress / sN, rtol=1e-3)
+
+
+def test_surface_points_need_the_compaction_fade():
+    """Points of the thesis-sand footing next to the surface, in situ (0.2-2 kPa), with the first
+    increment of the footing: with the thesis's flow rule at every stress (compaction_stress = 0) the
+    strain-driven problem of these contractive planes has no solution and every point fails; with the
+    default fade they integrate in a few iterations and agree with the reference."""
+    model0, d, state = _replay_file("footing_surface_points.npz")
+    assert model0.params.compaction_stress == 0.0
+    idx = np.arange(0, len(d["stress"]), 13)
+    _, st0, _ = model0.update(d["d_strain"][idx], d["stress"][idx], {k: v[idx] for k, v in state.items()})
+    assert (st0["status"] == STATUS_FAILED).all()
+    model, _, _ = _replay_file("footing_surface_points.npz", compaction_stress=2.0)
+    s, st, D = model.update(d["d_strain"][idx], d["stress"][idx], {k: v[idx] for k, v in state.items()})
+    assert (st["status"] == STATUS_OK).all() and st["iterations"].max() <= 20
+    for j in (0, len(idx) // 2, len(idx) - 1):
+        s_ref, _, _, D_ref = update_point(model, d["d_strain"][idx], d["stress"][idx],
+                                          {k: v[idx] for k, v in state.items()}, point=j)
+        assert np.abs(s[j] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
+
+
+def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
+    """A point of the thesis-sand footing at 90 % mobilisation whose planes on their curves couple into
+    a rate problem with three solutions (not a P-matrix problem; enumerated here with the reference
+    algebra): Lemke's method in the kernel picks one of them."""
+    import itertools
+
+    from material import _cpa_local as L
+    from material._cpa_kernel import to_mandel
+    from material._cpa_plane import induced_tensor, plane_strengths
+    from material.cpa_reference import _Law
+
+    model, d, state = _replay_file("near_failure_point.npz")
+    law = model._law
+    sig_n = to_mandel(d["stress"][:1])[0]
+    de = to_mandel(d["d_strain"][:1])[0]
+    eps_n = to_mandel(state["strain"][:1])[0]
+    kap_n = np.ascontiguousarray(state["kappa"][0])
+    M = kap_n.size
+    ws = L.make_workspace(M)
+    lam6 = np.zeros(6)
+    induced_tensor(eps_n + de, law.beta, law.alpha_hat, law.beta_hat, lam6)
+    plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
+    pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
+                 ws.select, 1.0)
+    assert L._rate_active_set(law, pt, ws)
+    chosen = {int(a) for a in np.flatnonzero(ws.select)}
+    # the rate problem by the reference: b_a = d etah_a / d sigma (complex step), m_a, q and H
+    ref = _Law(model)
+    sig = d["stress"][0]
+    ef = ref.eta_f(state["strain"][0] + d["d_strain"][0])
+    ratio, _, g = ref.planes(sig, ef)
+    eta_n = ref.hardening(kap_n, ef, 0.0)
+    on = np.flatnonzero(ratio >= eta_n - 1e-12 * (1 + eta_n))
+    assert 10 < on.size < 20
+    b = np.zeros((M, 3, 3))
+    for i in range(3):
+        for j in range(3):
+            E = np.zeros((3, 3), complex)
+            E[i, j] += 0.5e-30j
+            E[j, i] += 0.5e-30j
+            b[:, i, j] = ref.planes(sig + E, ef)[0].imag / 1e-30
+    m = 0.5 * (np.einsum("ai,aj->aij", g, model.normals) + np.einsum("aj,ai->aij", g, model.normals))
+
+    def stiff(e):
+        return 2 * ref.G * e + ref.lam * np.trace(e, axis1=-2, axis2=-1)[..., None, None] * np.eye(3)
+
+    q = np.einsum("aij,ij->a", b, stiff(d["d_strain"][0]))[on]
+    deta = ((ref.hardening(kap_n + 1e-30j * model.params.A, ef, 0.0)).imag / (1e-30 * model.params.A))[on]
+    H = np.einsum("aij,bij->ab", b[on], stiff(m[on])) * (model.weights[on] / model.params.t)[None, :] + np.diag(deta)
+    solutions = []
+    for k in range(on.size + 1):
+        for c in itertools.combinations(range(on.size), k):
+            c = list(c)
+            x = np.zeros(on.size)
+            if c:
+                try:
+                    x[c] = np.linalg.solve(H[np.ix_(c, c)], q[c])
+                except np.linalg.LinAlgError:
+                    continue
+            w = q - H @ x
+            if (x >= -1e-12).all() and (w <= 1e-9 * np.abs(q).max()).all():
+                solutions.append({int(on[j]) for j in c if x[j] > 0})
+    assert len(solutions) == 3  # the rate problem of this point is not uniquely solvable
+    assert chosen in solutions
 
 
 def _rotation(theta, axis):
@@ -145,9 +318,9 @@ def test_objectivity_rotating_axes_stress_and_strain_together(beta):
         sig1, st1, D1 = m1.update(DE[None], sig1, st1)
         sig2, st2, D2 = m2.update(de2[None], sig2, st2)
     np.testing.assert_allclose(sig2[0], Q @ sig1[0] @ Q.T, atol=1e-10 * np.abs(sig1).max())
-    np.testing.assert_allclose(st2["kappa"], st1["kappa"], rtol=1e-10, atol=1e-16)
+    np.testing.assert_allclose(st2["kappa"], st1["kappa"], rtol=1e-9, atol=1e-16)
     D1r = np.einsum("ia,jb,kc,ld,abcd->ijkl", Q, Q, Q, Q, D1[0])
-    np.testing.assert_allclose(D2[0], D1r, atol=1e-10 * np.abs(D1).max())
+    np.testing.assert_allclose(D2[0], D1r, atol=1e-9 * np.abs(D1).max())
 
 
 def test_batch_equals_points_one_by_one(rng):
@@ -177,25 +350,8 @@ def test_update_does_not_modify_its_inputs():
         np.testing.assert_array_equal(st[k], st0[k])
 
 
-def test_tension_cutoff_goes_to_the_apex():
-    model = CPAModel("ottawa_c109")
-    sig = -10.0 * np.eye(3)[None]
-    st = model.initial_state(1, stress=sig[0])
-    new, st1, D = model.update(1e-2 * np.eye(3)[None], sig, st)  # volumetric extension beyond p = 0
-    assert np.all(new == 0.0)
-    assert st1["tension_cutoff"][0] and st1["status"][0] == STATUS_OK
-    assert np.isfinite(D).all() and 0 < D[0, 0, 0, 0, 0] < 1e-3 * 6000
-    # plastic opening takes the whole misfit: eps_p = d_eps + S sigma_n
-    K = 6000.0 / (3 * (1 - 2 * 0.33))
-    assert np.trace(st1["plastic_strain"][0]) == pytest.approx(3e-2 - 10.0 / K * 1.0, rel=1e-12)
-    # from the apex, compression brings it back
-    back, st2, _ = model.update(-2e-2 * np.eye(3)[None], new, st1)
-    assert st2["status"][0] == STATUS_OK and not st2["tension_cutoff"][0]
-    assert np.trace(back[0]) < 0
-
-
 def test_failed_point_returns_start_stress_and_a_replay_file(tmp_path):
-    model = CPAModel("ottawa_c109", maxit=1, max_substep_level=0, replay_dir=tmp_path)
+    model = CPAModel("ottawa_c109", maxit=1, max_halvings=0, replay_dir=tmp_path)
     sig, st = _loaded(CPAModel("ottawa_c109"), 5)
     new, st1, D = model.update(DE[None], sig, st)
     assert st1["status"][0] == STATUS_FAILED
@@ -205,7 +361,7 @@ def test_failed_point_returns_start_stress_and_a_replay_file(tmp_path):
     files = list(tmp_path.glob("cpa-failure-*.npz"))
     assert len(files) == 1
     # replay with the default options converges and agrees with a fresh model
-    _, stress_r, state_r, _ = replay(files[0], maxit=30, max_substep_level=6)
+    _, stress_r, state_r, _ = replay(files[0], maxit=25, max_halvings=12)
     ref, _, _ = CPAModel("ottawa_c109").update(DE[None], sig, st)
     assert state_r["status"][0] == STATUS_OK
     np.testing.assert_allclose(stress_r, ref, rtol=1e-12)
@@ -219,8 +375,11 @@ def test_initial_anisotropic_stress_releases_no_slip_burst():
     tiny = 1e-8 * DE
     new, st1, _ = model.update(tiny[None], k0[None], st)
     assert np.abs(new[0] - k0).max() < 1e-3  # ~ E |tiny|, not a jump
+    assert not st1["loading"].any()  # inside the 5 % elastic margin
     with pytest.raises(ValueError, match="failure surface"):
         model.initial_state(1, stress=np.diag([-1.0, -1.0, -100.0]))
+    with pytest.raises(ValueError, match="mean tension"):
+        model.initial_state(1, stress=np.diag([1.0, 1.0, 1.0]))
 
 
 def test_large_increments_converge_at_first_order_to_many_small_ones():
@@ -272,6 +431,10 @@ def test_bad_construction_is_named():
         CPAModel("ottawa_c109", axes=np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError, match="maxit"):
         CPAModel("ottawa_c109", maxit=0)
+    with pytest.raises(ValueError, match="max_halvings = 31"):
+        CPAModel("ottawa_c109", max_halvings=31)
+    with pytest.raises(ValueError, match="tol"):
+        CPAModel("ottawa_c109", tol=0.1)
 
 
 def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one():
@@ -288,7 +451,6 @@ def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one(
 
 # ------------------------------------------------------------------ post-peak softening (zeta > 1)
 SOFT = dict(zeta=1.05, softening_slip=0.01, residual_ratio=0.65)
-DE_SHEAR = np.diag([0.8e-3, -1e-3, 0.0])  # compression along y, strain driven
 
 
 def _soft_path(h, n_steps=240, de=DE_SHEAR):
@@ -304,11 +466,7 @@ def _soft_path(h, n_steps=240, de=DE_SHEAR):
         sig, st, _ = model.update(de[None], sig, st)
         assert st["status"][0] != STATUS_FAILED
         a = int(np.argmax(st["kappa"][0]))
-        n = model.normals[a]
-        t = sig[0] @ n
-        sN = -n @ t
-        tau = np.linalg.norm(t + sN * n)
-        rows.append((st["kappa"][0, a], tau / sN / ef[a], st["mobilised_ratio"][0]))
+        rows.append((st["kappa"][0, a], model.mobilised_ratios(sig)[0, a] / ef[a], st["mobilised_ratio"][0]))
     return p, np.array(rows)
 
 
@@ -323,10 +481,9 @@ def test_softening_past_the_peak_follows_the_law_scaled_by_the_element_size():
         post = kap > ks * 1.05
         assert post.sum() > 20  # well into the softening branch
         law = p.residual_ratio + (1 - p.residual_ratio) / (1 + (kap[post] - ks) * h / (p.t * p.softening_slip))
-        np.testing.assert_allclose(ratio[post], law, rtol=1e-6)  # to the solver tolerance
-        assert 0.98 <= mob.max() <= 1.0 + 1e-6  # the peak is eta_f: no plane overshoots it
+        np.testing.assert_allclose(ratio[post], law, rtol=1e-9)
+        assert 0.98 <= mob.max() <= 1.0 + 1e-9  # the peak is eta_f: no plane overshoots it
         assert mob[-1] < 0.85  # and it softens towards the residual 0.65
-    # the larger element softens faster in slip (its slip is a smaller jump): lower ratio at the end
     assert _soft_path(0.012)[1][-1, 1] < _soft_path(0.006)[1][-1, 1]
 
 
@@ -354,62 +511,3 @@ def test_without_softening_the_mobilised_ratio_keeps_rising_past_eta_f():
     for _ in range(240):
         sig, st, _ = model.update(DE_SHEAR[None], sig, st)
     assert 1.0 < st["mobilised_ratio"][0] < 1.05
-
-
-def test_point_whose_active_set_cycles_integrates_with_the_wide_hysteresis():
-    """A point from a CPA strip footing (near the surface, a tiny increment, several planes on their
-    loading/unloading kink) whose local problem has no consistent active set: the plane-by-plane switch
-    cycles for ever with the normal hysteresis. The last-resort attempt (switch-on overstress 1e-4 zeta
-    eta_f) integrates it in one step; the answer agrees with 1024 sub-steps to the size of that band."""
-    from pathlib import Path
-
-    path = Path(__file__).parent / "data" / "active_set_cycling_point.npz"
-    _, s1, st1, _ = replay(path, max_substep_level=0)
-    assert st1["status"][0] == STATUS_OK
-    _, s10, st10, _ = replay(path, max_substep_level=10)
-    assert st10["status"][0] != STATUS_FAILED
-    d = np.load(path)
-    ds = np.abs(s10[0] - d["stress"][0]).max()  # stress change over the increment
-    assert np.abs(s1[0] - s10[0]).max() <= max(1e-4 * np.abs(s10[0]).max(), ds)
-
-
-def test_point_within_one_increment_of_the_apex_goes_there():
-    """A surface point of a CPA footing with a stress of ~4e-4 kPa (about what one increment produces
-    elastically) and a shearing increment: the normal active-set logic finds no cone state; the last
-    resort or the apex (stress free, flagged) takes it instead of failing."""
-    from pathlib import Path
-
-    path = Path(__file__).parent / "data" / "near_apex_point.npz"
-    _, s, st, D = replay(path, max_substep_level=2)
-    assert st["status"][0] != STATUS_FAILED and np.isfinite(D).all()
-    assert np.abs(s[0]).max() <= 2 * np.abs(np.load(path)["stress"][0]).max()  # stays at the apex's scale
-
-
-def test_stiff_sand_points_unloading_to_the_apex_integrate():
-    """Four points beside a strip footing on a stiff sand (E = 60 MPa) at 5-15 kPa, whose first
-    increment failed at every sub-step level: dilation under the footing's sideways push unloads them
-    towards the apex, and near it the local Newton of the low-stress planes stops. The adaptive
-    sub-stepping keeps the part of the increment already done, and a point whose path would reach the
-    apex within the rest of the increment goes there. Reference: the same increment applied in 256
-    separate updates."""
-    import json
-    from pathlib import Path
-
-    from material.parameters import parameters_from_dict
-
-    path = Path(__file__).parent / "data" / "stiff_sand_low_stress_points.npz"
-    _, s, st, D = replay(path)
-    assert (st["status"] != STATUS_FAILED).all() and np.isfinite(D).all()
-    d = dict(np.load(path))
-    params = parameters_from_dict(json.loads(str(d["params_json"])))
-    reference = CPAModel(params, rule=str(d["rule"]), axes=d["axes"])
-    s_ref, st_ref = d["stress"].copy(), {k[7:]: v.copy() for k, v in d.items() if k.startswith("state__")}
-    for _ in range(256):
-        s_ref, st_ref, _ = reference.update(d["d_strain"] / 256, s_ref, st_ref)
-    assert (st_ref["status"] != STATUS_FAILED).all()
-    start = np.abs(d["stress"]).max(axis=(1, 2))
-    err = np.abs(s - s_ref).max(axis=(1, 2))
-    cut = st["tension_cutoff"]
-    # three reach the apex (the reference ends there or within 4 % of the start stress), one stays in
-    # the cone and agrees with the reference to 2 % of its start stress
-    assert cut.sum() == 3 and (err[cut] <= 0.04 * start[cut]).all() and err[~cut] <= 0.02 * start[~cut]

@@ -27,6 +27,9 @@ INVALID = [
     ("beta_hat", math.inf, "finite"),
     ("softening_slip", -1e-3, "softening_slip >= 0"), ("softening_slip", math.inf, "softening_slip >= 0"),
     ("residual_ratio", 0.0, "0 < residual_ratio <= 1"), ("residual_ratio", 1.2, "0 < residual_ratio <= 1"),
+    ("apex_stress", 0.0, "apex_stress > 0"), ("apex_stress", -0.05, "apex_stress > 0"),
+    ("apex_stress", math.inf, "apex_stress > 0"),
+    ("compaction_stress", -1.0, "compaction_stress >= 0"), ("compaction_stress", math.nan, "compaction_stress >= 0"),
 ]
 
 

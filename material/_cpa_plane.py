@@ -1,0 +1,233 @@
+"""The plane law of the CPA model: strength of a plane, hardening, and a plane's kinematics at a stress.
+
+Pure numba functions on scalars and small arrays (no Python objects), used by the local solver
+(:mod:`material._cpa_local`). The equations, with the conventions of ``docs/cpa_law.md``:
+
+Strength (eqs. 2.4, 3.14-3.15)
+    x_a = n_a . (Omega + Lambda(eps)) . n_a,  eta_f,a = eta0 (1 + x + a1 x^2 + a2 x^3 + ...),
+    Lambda = beta dev(eps) (or the coaxial law 3.8), eps the total strain at the end of the step.
+The apex (this package's addition, ``docs/cpa_law.md``)
+    sigma~ = sigma_N + c / eta_f + c_a   (the cohesion and the apex stress c_a read as shifts of the
+    normal stress), T = sqrt(tau^2 + b^2) with b = c_a / 10: every loading surface T = eta sigma~ is
+    a convex hyperbolic cone with its tip in tension, at sigma~ = b / eta, so the surfaces of different
+    hardening levels share no point and etah is smooth wherever sigma~ > 0.
+Mobilised ratio and hardening (2.16)
+    etah = T / sigma~,   eta(kappa) = zeta eta_f kappa / (A + kappa)   (then the optional softening
+    branch past kappa* = A / (zeta - 1)); a plane loads while etah = eta(kappa), kappa never decreases.
+Flow (2.7, 2.9, 2.17, with the same substitution in the potential)
+    m = sym((t_s / T + (etah - eta_c) n) (x) n) per unit slip,  eta_c = eta_c_ratio eta_f w(sigma~),
+    w = sigma~^2 / (sigma~^2 + p_c^2): slip along the shear traction, compaction while etah < eta_c,
+    dilation above; associated for eta_c = 0. The factor w (this package's addition) lets the
+    compaction fade below the normal stress p_c (dilatancy grows as confinement falls, Bolton 1986):
+    without it the strain-driven problem of a contractive plane set at low stress has no solution.
+
+Mandel vectors: ``v = (a11, a22, a33, r a23, r a13, r a12)``, r = sqrt 2, so ``a : b = v_a . v_b``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+SQ2 = np.sqrt(2.0)
+ISQ2 = 1.0 / np.sqrt(2.0)
+
+
+# ------------------------------------------------------------------------------------------ strength
+@njit(cache=True, error_model="numpy")
+def series_and_slope(x, coeffs):
+    """1 + x + a1 x^2 + a2 x^3 + ... and its derivative in x (the bracket of eq. 2.4)."""
+    val = 1.0 + x
+    der = 1.0
+    xp = x  # x^(k+1) for coefficient a_k
+    for k in range(coeffs.shape[0]):
+        der += (k + 2) * coeffs[k] * xp
+        xp *= x
+        val += coeffs[k] * xp
+    return val, der
+
+
+@njit(cache=True, error_model="numpy")
+def induced_tensor(eps6, beta, ahat, bhat, out):
+    """Induced tensor Lambda (Mandel) of the total strain eps6 (eqs. 3.8, 3.15) into ``out``.
+
+    Lambda = beta |e| n^Omega, n^Omega = alpha_hat n^e + beta_hat dev(n^e n^e) normalised, e = dev(eps);
+    with beta_hat = 0 (alpha_hat > 0) exactly beta e.
+    """
+    tr3 = (eps6[0] + eps6[1] + eps6[2]) / 3.0
+    norm = 0.0
+    for i in range(6):
+        e = eps6[i] - tr3 if i < 3 else eps6[i]
+        out[i] = e
+        norm += e * e
+    norm = np.sqrt(norm)
+    if bhat == 0.0 and ahat > 0.0:
+        for i in range(6):
+            out[i] *= beta
+        return
+    if norm == 0.0:
+        for i in range(6):
+            out[i] = 0.0
+        return
+    a11, a22, a33 = out[0] / norm, out[1] / norm, out[2] / norm
+    a23, a13, a12 = out[3] / norm * ISQ2, out[4] / norm * ISQ2, out[5] / norm * ISQ2
+    q11 = a11 * a11 + a12 * a12 + a13 * a13
+    q22 = a12 * a12 + a22 * a22 + a23 * a23
+    q33 = a13 * a13 + a23 * a23 + a33 * a33
+    q23 = a12 * a13 + a22 * a23 + a23 * a33
+    q13 = a11 * a13 + a12 * a23 + a13 * a33
+    q12 = a11 * a12 + a12 * a22 + a13 * a23
+    qt = (q11 + q22 + q33) / 3.0
+    d0 = ahat * a11 + bhat * (q11 - qt)
+    d1 = ahat * a22 + bhat * (q22 - qt)
+    d2 = ahat * a33 + bhat * (q33 - qt)
+    d3 = (ahat * a23 + bhat * q23) * SQ2
+    d4 = (ahat * a13 + bhat * q13) * SQ2
+    d5 = (ahat * a12 + bhat * q12) * SQ2
+    dn = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3 + d4 * d4 + d5 * d5)
+    if dn == 0.0:
+        for i in range(6):
+            out[i] = 0.0
+        return
+    f = beta * norm / dn
+    out[0], out[1], out[2], out[3], out[4], out[5] = f * d0, f * d1, f * d2, f * d3, f * d4, f * d5
+
+
+@njit(cache=True, error_model="numpy")
+def induced_slope(eps6, beta, ahat, bhat, L, scratch):
+    """L = d Lambda / d eps (6, 6), Mandel: exact (beta P_dev) for the linear law; for the general law
+    (3.8) a central difference with step 1e-5 |e| (Lambda is homogeneous of degree one in e, so the
+    relative error is ~1e-10), and beta P_dev at e = 0."""
+    norm = 0.0
+    tr3 = (eps6[0] + eps6[1] + eps6[2]) / 3.0
+    for i in range(6):
+        e = eps6[i] - tr3 if i < 3 else eps6[i]
+        norm += e * e
+    norm = np.sqrt(norm)
+    if (bhat == 0.0 and ahat > 0.0) or norm == 0.0:
+        for i in range(6):
+            for j in range(6):
+                L[i, j] = beta * ((1.0 if i == j else 0.0) - (1.0 / 3.0 if (i < 3 and j < 3) else 0.0))
+        return
+    h = 1e-5 * norm
+    ep = scratch[0]
+    lp = scratch[1]
+    lm = scratch[2]
+    for j in range(6):
+        for i in range(6):
+            ep[i] = eps6[i]
+        ep[j] += h
+        induced_tensor(ep, beta, ahat, bhat, lp)
+        ep[j] -= 2.0 * h
+        induced_tensor(ep, beta, ahat, bhat, lm)
+        for i in range(6):
+            L[i, j] = (lp[i] - lm[i]) / (2.0 * h)
+
+
+@njit(cache=True, error_model="numpy")
+def plane_strengths(nn6, om6, lam6, coeffs, eta0, eta_f, deta_f):
+    """eta_f,a and d eta_f,a / d x_a, x_a = n_a.(Omega + Lambda).n_a (eqs. 2.4, 3.14), into the arrays."""
+    for a in range(nn6.shape[0]):
+        x = 0.0
+        for i in range(6):
+            x += nn6[a, i] * (om6[i] + lam6[i])
+        val, der = series_and_slope(x, coeffs)
+        eta_f[a] = eta0 * val
+        deta_f[a] = eta0 * der
+
+
+# ------------------------------------------------------------------------------------------ hardening
+@njit(cache=True, inline="always", error_model="numpy")
+def hardening(kappa, eta_f, zeta, A, kstar, soft, residual):
+    """eta(kappa) and d eta / d kappa of a plane (eq. 2.16), both proportional to eta_f.
+
+    The hyperbola zeta eta_f kappa / (A + kappa) up to kappa* = A / (zeta - 1); past it, when the point
+    has a softening slip scale ``soft`` > 0, the decay eta_f (r + (1 - r) / (1 + (kappa - kappa*) / soft))
+    to r = ``residual`` (continuous, with a kink at the peak eta = eta_f)."""
+    if soft > 0.0 and kappa >= kstar:
+        x = 1.0 + (kappa - kstar) / soft
+        return eta_f * (residual + (1.0 - residual) / x), -eta_f * (1.0 - residual) / (soft * x * x)
+    zef = zeta * eta_f
+    apk = A + kappa
+    return zef * kappa / apk, zef * A / (apk * apk)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def ratio_barrier(eta_f, zeta, soft):
+    """The largest mobilised ratio the hardening branch reaches: zeta eta_f (asymptotically), or the
+    peak eta_f when the plane can soften."""
+    return eta_f if soft > 0.0 else zeta * eta_f
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def slip_of_ratio(etah, eta_f, zeta, A):
+    """kappa(etah) = A etah / (zeta eta_f - etah), the hardening branch of (2.16) inverted, and its slope."""
+    zef = zeta * eta_f
+    d = zef - etah
+    return A * etah / d, A * zef / (d * d)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def compaction_weight(sigma_t, p_c):
+    """w = sigma~^2 / (sigma~^2 + p_c^2) and dw / d sigma~: the factor on eta_c in the flow rule, so a plane
+    compacts as the thesis says at working stresses and not at all as its normal stress vanishes."""
+    if p_c == 0.0:
+        return 1.0, 0.0
+    s2 = sigma_t * sigma_t
+    d = s2 + p_c * p_c
+    return s2 / d, 2.0 * sigma_t * p_c * p_c / (d * d)
+
+
+# ------------------------------------------------------------------------------------------ kinematics
+@njit(cache=True, inline="always", error_model="numpy")
+def traction(sig, n0, n1, n2):
+    """t = sigma n for a Mandel stress vector."""
+    s11, s22, s33 = sig[0], sig[1], sig[2]
+    s23, s13, s12 = sig[3] * ISQ2, sig[4] * ISQ2, sig[5] * ISQ2
+    return (s11 * n0 + s12 * n1 + s13 * n2, s12 * n0 + s22 * n1 + s23 * n2, s13 * n0 + s23 * n1 + s33 * n2)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def sym_mandel(out, a0, a1, a2, n0, n1, n2):
+    """out = Mandel(sym(a (x) n))."""
+    out[0] = a0 * n0
+    out[1] = a1 * n1
+    out[2] = a2 * n2
+    out[3] = (a1 * n2 + a2 * n1) * ISQ2
+    out[4] = (a0 * n2 + a2 * n0) * ISQ2
+    out[5] = (a0 * n1 + a1 * n0) * ISQ2
+
+
+#: b / c_a: the rounding of a plane's tip relative to the apex stress (a stress-free plane is mobilised
+#: to etah = b / c_a = 0.1 when it has no cohesion).
+APEX_ROUNDING = 0.1
+
+
+@njit(cache=True, error_model="numpy")
+def plane_kinematics(sig, normal, shift, rounding, sn6, rn6):
+    """The plane's stress measures at the Mandel stress ``sig``.
+
+    ``shift`` is c / eta_f + c_a, ``rounding`` is b. Returns (sigma~, tau, T) and fills
+    sn6 = Mandel(sym(s (x) n)) and rn6 = Mandel(sym(r (x) n)) for an orthonormal pair (s, r) of shear
+    directions of the plane, s along the shear traction (d tau / d sigma = sn6); where the plane carries
+    no shear, a fixed pair (nothing that follows depends on which).
+    """
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    t0, t1, t2 = traction(sig, n0, n1, n2)
+    tn = t0 * n0 + t1 * n1 + t2 * n2
+    ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
+    tau = np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2)
+    if tau > 0.0:
+        s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
+    else:  # any shear direction: the one of the smallest normal component
+        if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
+            s0, s1, s2 = 0.0, -n2, n1
+        elif abs(n1) <= abs(n2):
+            s0, s1, s2 = n2, 0.0, -n0
+        else:
+            s0, s1, s2 = -n1, n0, 0.0
+        ns = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        s0, s1, s2 = s0 / ns, s1 / ns, s2 / ns
+    sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
+    sym_mandel(rn6, n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0, n0, n1, n2)
+    return -tn + shift, tau, np.sqrt(tau * tau + rounding * rounding)
