@@ -80,15 +80,7 @@ class SolverOptions:
     or "ilu-gmres", or "auto" (the default, chosen by measurement, benchmarks/fe_newton.py: SuperLU for
     plane strain below 200k DOFs and 3D below 10k DOFs, AMG-GMRES above); krylov_tol : relative
     tolerance of the Krylov solvers.
-    tol_accept : None (default) or a looser tolerance >= tol: a step whose Newton iterations stall
-    (``max_iter`` reached, e.g. cycling among material active sets) with a residual <= tol_accept is
-    accepted instead of cut back; the history column ``residual`` shows its value, so such steps stay
-    visible.
-    stall_iter : a try ends early when the residual has not reached a new minimum for this many
-    iterations (Newton cycling over the kinks of a piecewise-smooth material response, e.g. planes
-    crossing their peak); it then ends as a try that reached ``max_iter`` does, except that the best
-    iterate, not the last, is the one accepted below ``tol_accept``. The step size regrows after an
-    accepted stalled step as after an easy one (``easy_iter``): smaller steps do not remove such kinks.
+    A step is accepted only when its residual is below ``tol``; otherwise it is cut back.
     """
 
     tol: float = 1e-8
@@ -102,8 +94,6 @@ class SolverOptions:
     predictor: str = "tangent"
     linear_solver: str = "auto"
     krylov_tol: float = 1e-10
-    tol_accept: float | None = None
-    stall_iter: int = 6
 
     def __post_init__(self):
         if self.linear_solver not in LINEAR_SOLVERS:
@@ -112,10 +102,6 @@ class SolverOptions:
             raise ValueError(f"predictor = {self.predictor!r}: allowed 'tangent' or 'none'")
         if not (0 < self.tol < 1):
             raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
-        if self.tol_accept is not None and not (self.tol <= self.tol_accept < 1):
-            raise ValueError(f"tol_accept = {self.tol_accept!r}: allowed None or tol <= tol_accept < 1")
-        if int(self.stall_iter) < 2:
-            raise ValueError(f"stall_iter = {self.stall_iter!r}: allowed an integer >= 2")
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
             raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: "
                              "need max_iter >= 1, max_cuts >= 0")
@@ -288,10 +274,15 @@ class NewtonSolver:
     f_ramp : (ndofs,) external force scaled by the load factor t [kN]
     initial_stress : None, (3, 3) or (N, 3, 3) in-situ stress [kPa], tension positive
     options : :class:`SolverOptions`
+    log : :class:`femgran.diagnostics.NewtonLog`, optional
+        Records every material evaluation of the Newton iterations (what the material did, and the
+        convergence rate); :attr:`log` is always set (an in-memory log by default).
     """
 
     def __init__(self, disc, material, dirichlet, *, f_fixed=None, f_ramp=None, initial_stress=None,
-                 options: SolverOptions | None = None):
+                 options: SolverOptions | None = None, log=None):
+        from femgran.diagnostics import NewtonLog
+
         check_material(material)
         self.disc = disc
         self.material = material
@@ -315,7 +306,7 @@ class NewtonSolver:
         self._near_nullspace = None
         self._committed_tangent = None
         self.linear = None  # LinearSolver, made at the first solve
-        self._accepted_stalled = False  # the last step ended by a stall accepted below tol_accept
+        self.log = NewtonLog() if log is None else log
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -384,18 +375,36 @@ class NewtonSolver:
         du[self.free] = self._solve_free(K, rhs, 1e-3)
         return du
 
-    def step(self, t_new: float):
-        """Try one step to load factor t_new from the committed state. Returns (du, iterations, residuals)."""
+    def step(self, t_new: float, *, step: int = 0, attempt: int = 0):
+        """Try one step to load factor t_new from the committed state. Returns (du, iterations, residuals).
+
+        Raises ``_StepFailure`` (the caller cuts back) when a material point fails, the residual is not
+        finite or explodes, or ``max_iter`` iterations do not bring it below ``tol``.
+        """
         opt = self.options
-        self._accepted_stalled = False
+        self.log.start_try()
+
+        def evaluate(du, it, s, rf_before=None):
+            """Material update and residual of the iterate du, logged; (r, tangent, rf, ref) or raises."""
+            try:
+                r, tangent = self._evaluate(du, t_new)
+            except _StepFailure:
+                self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=np.nan,
+                                line_search=s, accepted=False, state=self.points.trial_state,
+                                committed=self.points.state)
+                raise
+            rf, ref = self._norms(r, t_new)
+            accepted = rf_before is None or rf <= rf_before
+            self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=rf / ref,
+                            line_search=s, accepted=accepted, state=self.points.trial_state, committed=self.points.state)
+            return r, tangent, rf, ref
+
         du = np.zeros(self.disc.ndofs)
         du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
         if opt.predictor == "tangent":
             du = self._predict(du, t_new)
-        r, tangent = self._evaluate(du, t_new)
-        rf, ref = self._norms(r, t_new)
+        r, tangent, rf, ref = evaluate(du, 0, 0.0)
         residuals = [rf / ref]
-        best, best_du, since_best = residuals[0], du, 0
         for it in range(1, opt.max_iter + 1):
             if residuals[-1] <= opt.tol:
                 return du, it - 1, residuals
@@ -404,17 +413,18 @@ class NewtonSolver:
             # inexact Newton (Krylov solvers): forcing term eta_k = min(1e-3, 0.1 |r_k| / ref) keeps the
             # convergence quadratic while sparing GMRES iterations far from the solution
             ddu[self.free] = self._solve_free(K, -r[self.free], min(1e-3, 0.1 * residuals[-1]))
+            # backtracking line search on |r|: the full step unless it increases the residual
             s = 1.0
             for ls in range(opt.line_search + 1):
+                last = ls == opt.line_search
                 try:
-                    r_new, tangent_new = self._evaluate(du + s * ddu, t_new)
-                    rf_new, ref_new = self._norms(r_new, t_new)
+                    r_new, tangent_new, rf_new, ref_new = evaluate(du + s * ddu, it, s, None if last else rf)
                 except _StepFailure:
-                    if ls == opt.line_search:
+                    if last:
                         raise
                     s *= 0.5
                     continue
-                if rf_new <= rf or ls == opt.line_search:
+                if rf_new <= rf or last:
                     break
                 s *= 0.5
             du = du + s * ddu
@@ -422,23 +432,11 @@ class NewtonSolver:
             residuals.append(rf / ref)
             if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
                 raise _StepFailure("Newton diverging")
-            if residuals[-1] < best:
-                best, best_du, since_best = residuals[-1], du, 0
-            else:
-                since_best += 1
-                if since_best >= opt.stall_iter and residuals[-1] > opt.tol:
-                    break  # cycling: no new minimum for stall_iter iterations
         if residuals[-1] <= opt.tol:
-            return du, it, residuals
-        if opt.tol_accept is not None and best <= opt.tol_accept:
-            self._accepted_stalled = True
-            if best_du is not du:
-                self._evaluate(best_du, t_new)  # the material's trial state of the accepted iterate
-                residuals.append(best)
-            return best_du, it, residuals
+            return du, opt.max_iter, residuals
         tail = ", ".join(f"{x:.1e}" for x in residuals[-6:])
-        what = f"stalled after {it} iterations" if it < opt.max_iter else f"no convergence in {it} iterations"
-        raise _StepFailure(f"{what} (residual {residuals[-1]:.2e}; last residuals {tail})")
+        raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e}; "
+                           f"last residuals {tail})")
 
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
@@ -477,7 +475,7 @@ class NewtonSolver:
             t_new = self.t + dt
             t0 = time.perf_counter()
             try:
-                du, iters, residuals = self.step(t_new)
+                du, iters, residuals = self.step(t_new, step=n_step + 1, attempt=cuts)
             except _StepFailure as exc:
                 self.points.revert()
                 cuts += 1
@@ -504,9 +502,7 @@ class NewtonSolver:
                 bar.update(dt)
                 bar.set_postfix_str(f"it={iters} res={residuals[-1]:.1e} cuts={cuts}")
             cuts = 0
-            # regrow after an easy step, and after a stalled one accepted below tol_accept: its cycling
-            # comes from kinks of the material response, which smaller steps do not remove
-            if not fixed_steps and (iters <= opt.easy_iter or self._accepted_stalled):
+            if not fixed_steps and iters <= opt.easy_iter:
                 dt = min(dt * opt.grow, dt_max)
         else:
             completed, reason = True, f"reached t = {t_end:g}"

@@ -26,10 +26,8 @@ hardens to a plateau and no band forms. The material offers post-peak softening 
 ``softening_slip`` > 0, ``residual_ratio``; :class:`material.CPAParameters`) regularised by the band
 thickness t with the crack-band method: the solver passes each point's element size h and the slip
 scale of the softening becomes ``softening_slip t / h``, so the energy dissipated per unit band area
-does not depend on h (``CPAModel(..., regularise=False)`` gives the mesh-dependent reference). Past the
-peak, Newton steps may stall with a residual cycling between 1e-6 and 1e-4 (points whose planes switch
-between loading and unloading from one iteration to the next); such steps are accepted below
-``tol_accept`` (1e-4) and the history's ``residual`` column shows them. ``examples/fe_04_biaxial_meshes.py``
+does not depend on h (``CPAModel(..., regularise=False)`` gives the mesh-dependent reference).
+``examples/fe_04_biaxial_meshes.py``
 runs three meshes with and without the regularisation. ``localised`` says whether the strain increment
 concentrates in a band (:func:`band_angle`). ``params["regularisation"]`` records the regularisation used.
 """
@@ -40,7 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import check_positive, keep_failed_points, make_material, material_record, nodes_near, run_folder, solver_options
+from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+                                  nodes_near, run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["biaxial", "band_angle"]
@@ -90,8 +89,8 @@ def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = No
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
-            tol_accept: float | None = 1e-4, weak_zone: float = 0.0, weak_zone_height: float = 0.25,
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float | None = None,
+            weak_zone: float = 0.0, weak_zone_height: float = 0.25,
             platens: str = "smooth"):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
@@ -106,9 +105,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
         needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
     platens : "smooth" (the default: the end faces slide freely) or "rough" (no lateral displacement
         of the end faces).
-    tol : relative residual tolerance of the Newton iterations (1e-6, as for the footing: the plane
-        active sets make the CPA response non-smooth at about 1e-7); tol_accept : see
-        :class:`femgran.solver.SolverOptions` (after the peak of a softening law Newton may stall).
+    tol : relative residual tolerance of the Newton iterations; None: the solver's
+        (:class:`femgran.solver.SolverOptions`, 1e-8).
 
     Returns
     -------
@@ -160,8 +158,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
                Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
                Dirichlet(d.vector_dofs(top, [0]), 0.0)]
     f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
+    out_dir = run_folder(out)
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(linear_solver, tol=check_positive("tol", tol), tol_accept=tol_accept))
+                          options=solver_options(linear_solver, tol=tol), log=newton_log(out_dir))
     xq = d.quadrature_points()
     w = d.dx.ravel()
     snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
@@ -175,13 +174,12 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
         snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
         return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
 
-    out_dir = run_folder(out)
     keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
               "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
               "weak_zone": weak, "weak_zone_height": float(weak_zone_height), "volumetric": volumetric,
-              "linear_solver": linear_solver, "tol": tol, "tol_accept": tol_accept, "material": material_record(mat),
+              "linear_solver": linear_solver, "tol": solver.options.tol, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat), "platens": platens}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters

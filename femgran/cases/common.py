@@ -73,10 +73,20 @@ def run_folder(out) -> Path | None:
     return p
 
 
-def solver_options(linear_solver: str = "auto", **kw):
+def solver_options(linear_solver: str = "auto", tol: float | None = None, **kw):
+    """SolverOptions with the case's choices; ``tol`` None keeps the solver's default."""
     from femgran.solver import SolverOptions
 
+    if tol is not None:
+        kw["tol"] = check_positive("tol", tol)
     return SolverOptions(linear_solver=linear_solver, **kw)
+
+
+def newton_log(out_dir):
+    """The Newton log of a run: ``newton_log.csv`` in the run folder (in memory without one)."""
+    from femgran.diagnostics import NewtonLog
+
+    return NewtonLog(None if out_dir is None else Path(out_dir) / "newton_log.csv")
 
 
 def check_positive(name: str, value, allow_zero: bool = False) -> float:

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import check_positive, keep_failed_points, make_material, material_record, run_folder, solver_options
+from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+                                  run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["footing", "footing_mesh", "prandtl_pressure"]
@@ -69,8 +70,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
             depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float = 1e-6,
-            tol_accept: float | None = 1e-4):
+            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float | None = None):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
     Parameters
@@ -85,14 +85,8 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
     volumetric : "bbar" (default: projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking)
         or "standard" (see :class:`femgran.assembly.Discretisation`).
-    tol : relative residual tolerance of the Newton iterations (out-of-balance force / reaction).
-        1e-6 by default, looser than the solver's 1e-8: with the CPA law hundreds of planes switch between
-        loading and unloading near the footing, and the switch-on hysteresis of the plane active sets
-        (1e-7 of the mobilised ratio, :mod:`material._cpa_kernel`) makes the material response
-        non-smooth at about that level, so Newton stagnates between 1e-8 and 1e-7 there.
-    tol_accept : a step whose Newton iterations stall (cycling among plane active sets) with a residual
-        below this is accepted rather than cut back (:class:`femgran.solver.SolverOptions`); the history
-        column ``residual`` shows it. None: only ``tol`` counts.
+    tol : relative residual tolerance of the Newton iterations (out-of-balance force / reaction); None:
+        the solver's (:class:`femgran.solver.SolverOptions`, 1e-8).
 
     Returns
     -------
@@ -138,22 +132,22 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     sigma0 = np.zeros((d.n_points, 3, 3))
     sigma0[:, 1, 1] = sv
     sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
+    out_dir = run_folder(out)
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
-                          options=solver_options(linear_solver, tol=check_positive("tol", tol), tol_accept=tol_accept))
+                          options=solver_options(linear_solver, tol=tol), log=newton_log(out_dir))
     fy_dofs = bcs[2].dofs
 
     def observe(s):
         r = d.internal_force(s.points.stress) - s.external(s.t)
         return {"settlement_m": -float(np.mean(s.u[fy_dofs])), "pressure_kPa": -float(np.sum(r[fy_dofs])) / B}
 
-    out_dir = run_folder(out)
     keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
               "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
-              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver, "tol": tol,
-              "tol_accept": tol_accept, "material": material_record(mat),
+              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver,
+              "tol": solver.options.tol, "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y (up)"}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
@@ -161,36 +155,15 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
     sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
-    advice = _cohesionless_advice(mat, sol)
-    if advice:
-        sol.stop_reason = f"{sol.stop_reason}. {advice}"
     sol.extra.update(params=params, **_capacity(sol.history, B))
     if out_dir is not None:
         from femgran.output import write_parameters
 
-        write_parameters(out_dir / "summary.json", {**{k: sol.extra[k] for k in
-                                                       ("bearing_capacity_kPa", "pressure_at_10pct_kPa", "plateau_ratio")},
-                                                    **({"advice": advice} if advice else {})})
+        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
+                                                    ("bearing_capacity_kPa", "pressure_at_10pct_kPa", "plateau_ratio")})
     if out_dir is not None and plots:
         _plots(sol, out_dir)
     return sol
-
-
-def _cohesionless_advice(material, sol) -> str:
-    """Advice for a run that stopped with a cohesionless CPA sand ("" when it does not apply).
-
-    Beside a rough footing the sand is pushed up and sideways; on a stiff sand (E = 60 MPa) points
-    near the footing edge dilate to the apex within the first millimetres, where the law has no
-    stiffness left, and flip between the apex and the cone from one Newton iteration to the next.
-    Measured (quick mesh, alpha 0, gamma 18, q_s 10 kPa): c0 = 0 stopped at a settlement of 1e-4 B;
-    c0 = 0.5 kPa ran on slowly (3.4 mm in 140 steps), c0 = 2 kPa to 0.05 B (212 steps, p = 652 kPa).
-    """
-    params = getattr(material, "params", None)
-    if sol.completed or params is None or getattr(params, "c0", None) != 0.0:
-        return ""
-    return ("The sand has no cohesion (c0 = 0): points beside the footing that dilate to the apex "
-            "(stress free) can stop Newton; a small cohesion, e.g. params.replace(c0=1.0) [kPa], "
-            "usually lets such a run continue")
 
 
 def _capacity(history, B: float) -> dict:

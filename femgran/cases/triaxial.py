@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, nodes_near,
-                                  run_folder, solver_options)
+from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+                                  nodes_near, run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
 
 __all__ = ["triaxial", "PLATENS"]
@@ -122,8 +122,9 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
                 Dirichlet(d.vector_dofs(nodes_near(d, (WIDTH, 0, 0)), [1]), 0.0)]
     lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
     f_cell = d.pressure_force(lateral, p0)
+    out_dir = run_folder(out)
     solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(linear_solver))
+                          options=solver_options(linear_solver), log=newton_log(out_dir))
     area = WIDTH * WIDTH
     top_x, bot_x = d.vector_dofs(top, [0]), d.vector_dofs(bot, [0])
     w = d.dx.ravel()
@@ -141,7 +142,6 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
                 "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
                 "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
-    out_dir = run_folder(out)
     keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
