@@ -3,8 +3,9 @@
 The algorithm (one load step from load factor t_n to t_{n+1} = t_n + dt):
 
 1. Displacement increment du: prescribed DOFs get u_D(t_{n+1}) - u_n; the others start from the
-   tangent predictor K_n du = f_ext(t_{n+1}) - f_int(sigma_n) with the last converged tangent K_n
-   (or at zero with ``predictor="none"``).
+   tangent predictor K_n du = f_ext(t_{n+1}) - f_int(sigma_n) with the last converged tangent K_n, or
+   (``predictor="extrapolate"``, after the first step) the last converged increment scaled to the new
+   step, or zero (``predictor="none"``).
 2. Newton iteration k: strain increment d_eps = B du at every quadrature point; ONE material call
    ``update(d_eps, sigma_n, state_n)`` from the committed start-of-step state gives sigma, the state and
    the consistent tangent D; residual r = f_int(sigma) - f_ext(t_{n+1}) on the free DOFs.
@@ -35,6 +36,7 @@ __all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", 
            "LINEAR_SOLVERS"]
 
 LINEAR_SOLVERS = ("auto", "superlu", "amg-gmres", "ilu-gmres")
+PREDICTORS = ("tangent", "extrapolate", "none")
 
 
 @dataclass
@@ -74,8 +76,11 @@ class SolverOptions:
     max_iter : Newton iterations per try; max_cuts : successive cut-backs before a clean stop.
     dt_min : smallest load-factor step; grow : dt factor after a step that took <= easy_iter iterations.
     line_search : backtracking steps (0 disables).
-    predictor : "tangent" (first guess of each step from the last converged tangent, so the prescribed
-    displacements spread smoothly into the body) or "none" (prescribed DOFs only, the rest zero).
+    predictor : first guess of each step's free displacements: "tangent" (from the last converged
+    tangent, so the prescribed displacements spread smoothly into the body), "extrapolate" (the last
+    converged increment scaled by dt / dt_last, the tangent predictor for the first step and after a
+    cut-back: on a monotonic path it already carries the plastic mechanism that the last tangent,
+    taken at the start of the previous step, does not), or "none" (prescribed DOFs only, the rest zero).
     linear_solver : "superlu" (direct), "amg-gmres" (pyamg smoothed aggregation preconditioning GMRES)
     or "ilu-gmres", or "auto" (the default, chosen by measurement, benchmarks/fe_newton.py: SuperLU for
     plane strain below 200k DOFs and 3D below 10k DOFs, AMG-GMRES above); krylov_tol : relative
@@ -98,8 +103,8 @@ class SolverOptions:
     def __post_init__(self):
         if self.linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"linear_solver = {self.linear_solver!r}: allowed {LINEAR_SOLVERS}")
-        if self.predictor not in ("tangent", "none"):
-            raise ValueError(f"predictor = {self.predictor!r}: allowed 'tangent' or 'none'")
+        if self.predictor not in PREDICTORS:
+            raise ValueError(f"predictor = {self.predictor!r}: allowed {PREDICTORS}")
         if not (0 < self.tol < 1):
             raise ValueError(f"tol = {self.tol!r}: allowed 0 < tol < 1")
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
@@ -307,6 +312,7 @@ class NewtonSolver:
         self._committed_tangent = None
         self.linear = None  # LinearSolver, made at the first solve
         self.log = NewtonLog() if log is None else log
+        self._last_increment = None  # (du, dt) of the last converged step, for the extrapolating predictor
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -401,7 +407,10 @@ class NewtonSolver:
 
         du = np.zeros(self.disc.ndofs)
         du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
-        if opt.predictor == "tangent":
+        if opt.predictor == "extrapolate" and self._last_increment is not None and attempt == 0:
+            du_last, dt_last = self._last_increment
+            du[self.free] = du_last[self.free] * ((t_new - self.t) / dt_last)
+        elif opt.predictor != "none":
             du = self._predict(du, t_new)
         r, tangent, rf, ref = evaluate(du, 0, 0.0)
         residuals = [rf / ref]
@@ -489,6 +498,7 @@ class NewtonSolver:
                 continue
             self.points.commit()
             self._committed_tangent = self.points.tangent
+            self._last_increment = (du, t_new - self.t)
             self.u = self.u + du
             self.t = t_new
             n_step += 1

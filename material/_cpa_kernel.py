@@ -66,11 +66,10 @@ def ratios(law, sig6, eta_f):
     M = law.normals.shape[0]
     out = np.empty((N, M))
     shift = np.empty(M)
-    scratch = np.empty((2, 6))
     for p in range(N):
         for a in range(M):
             shift[a] = law.cohesion[a] / eta_f[p, a] + law.apex_stress
-        _ratios(law, sig6[p], shift, out[p], scratch)
+        _ratios(law, sig6[p], shift, out[p])
     return out
 
 

@@ -64,7 +64,8 @@ from material._cpa_plane import (
     hardening,
     induced_slope,
     induced_tensor,
-    plane_kinematics,
+    plane_directions,
+    plane_stress,
     plane_strengths,
     ratio_barrier,
     slip_of_ratio,
@@ -94,7 +95,7 @@ Law = namedtuple("Law", [
 ])
 
 #: Options of the local solver.
-Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent"])
+Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation"])
 
 #: The data of one point's local problem (fixed during its solution except ``de``, the increment of the
 #: current fraction, and ``select``).
@@ -206,7 +207,7 @@ def _fb(u, v, loading):
 
 
 @njit(cache=True, error_model="numpy")
-def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
+def evaluate(law, pt, mu, sig, dk, dl, want_jac, plane, ws):
     """Residuals (and the condensed 7 x 7 Newton system) at the iterate (sig, dk[strong], dl).
 
     Fills ``dk`` of the weak planes (their closed-form slip), ``plane`` (per-plane values, columns
@@ -214,8 +215,8 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
     slip or a loading derivative), the strain residual ``ws.vecs[_V_R]``, and with ``want_jac`` the
     condensed Jacobian ``ws.J`` (7, 7) and right-hand side ``ws.rhs`` (7,) of the Newton step. Returns
     (admissible, merit, max |R|, max |Phi_a|, |Phi_0|); an iterate is not admissible where a plane's
-    shifted normal stress is not positive, a weak plane is at or past its barrier, or a strong plane's
-    kappa <= -A/2.
+    shifted normal stress is not positive, a weak plane is at or past its barrier (without
+    stabilisation, ``mu`` = 0), or a strong plane's kappa <= -A/2.
     """
     M = law.normals.shape[0]
     comp = law.comp
@@ -239,12 +240,11 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
     for a in range(M):
         ef = pt.eta_f[a]
         kn = pt.kap_n[a]
-        sn6 = ws.mvec[a]  # the plane's own rows as scratch: sn6 becomes m, rn6 becomes b
-        rn6 = ws.bvec[a]
-        sigma_t, tau, T = plane_kinematics(sig, law.normals[a], pt.shift[a], b_r, sn6, rn6)
+        sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], b_r)
         if not sigma_t > 0.0:
             return False, np.inf, np.inf, np.inf, np.inf
-        ratio = T / sigma_t  # mobilised ratio
+        inv_st = 1.0 / sigma_t
+        ratio = T * inv_st  # mobilised ratio
         wt = law.weights[a] * law.inv_t
         nn = law.nn6[a]
         cb = 0.0
@@ -256,7 +256,9 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
             if k <= -0.5 * A:
                 return False, np.inf, np.inf, np.inf, np.inf
             eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
-            phi, (pu, pv) = _fb(dk[a] / A, eta - ratio, pt.select[a])
+            # with the step stabilisation mu: g = etah - eta(kappa) - mu dkappa / A
+            phi, (pu, pv) = _fb(dk[a] / A, eta + mu * dk[a] / A - ratio, pt.select[a])
+            deta += mu / A
             phi2 += phi * phi
             phimax = max(phimax, abs(phi))
             slip = dk[a]
@@ -266,10 +268,9 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
             alpha = -phi / den  # d dkappa = alpha + cb b . d sigma
             cb = pv / den
         else:
-            if not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
+            if mu == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
-            kr, kp = slip_of_ratio(ratio, ef, law.zeta, A)  # (2.16) inverted
-            slip = kr - kn
+            slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, mu)  # (2.16) inverted
             if slip < -_ON_CURVE * (A + kn) or (slip <= 0.0 and not pt.select[a]):
                 kp = 0.0  # elastic (below its curve, or on it with the elastic branch chosen)
             if slip <= 0.0:
@@ -286,36 +287,43 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
         plane[a, _P_ALPHA] = alpha
         if slip == 0.0 and cb == 0.0:
             continue  # an elastic plane: no flow, no terms
-        s_t = tau / T
+        sn6 = ws.mvec[a]  # the plane's own rows as scratch: sn6 becomes m, rn6 becomes b
+        rn6 = ws.bvec[a]
+        plane_directions(law.normals[a], ts0, ts1, ts2, tau, sn6, rn6)
+        inv_T = 1.0 / T
+        s_t = tau * inv_T
         wc, dwc = compaction_weight(sigma_t, law.compaction_stress)
         dil = ratio - law.eta_c_ratio * ef * wc  # d psi / d sigma_N (2.17): < 0 compaction, > 0 dilation
-        if want_jac and slip != 0.0:
-            # d (s_t sn6) / d sigma = ((b / T)^2 sn6 (x) sn6 + rn6 (x) rn6) / T (the slip direction turning)
-            c1 = wt * slip * (b_r / T) ** 2 / T
-            c2 = wt * slip / T
+        if want_jac:
+            # J += wt [slip d m / d sigma + cb m (x) b], all in the span of sn6, rn6, nn6 with
+            # m = s_t sn6 + dil nn6 (2.7), b = d etah / d sigma = (s_t sn6 + etah nn6) / sigma~,
+            # d m / d sigma = ((b_r / T)^2 sn6 (x) sn6 + rn6 (x) rn6) / T (the slip direction turning)
+            #                 + nn6 (x) (b + eta_c w' nn6)
+            f_s = cb * s_t  # coefficient of sn6 in (slip nn6 + cb m)
+            f_n = slip + cb * dil  # of nn6
+            a_ss = wt * (slip * b_r * b_r * inv_T * inv_T * inv_T + f_s * s_t * inv_st)
+            a_ns = wt * f_n * s_t * inv_st
+            a_sn = wt * f_s * ratio * inv_st
+            a_nn = wt * (f_n * ratio * inv_st + slip * law.eta_c_ratio * ef * dwc)
+            a_rr = wt * slip * inv_T
+            ra = wt * alpha
             for i in range(6):
-                f1 = c1 * sn6[i]
-                f2 = c2 * rn6[i]
+                si = sn6[i]
+                ni = nn[i]
+                u = a_ss * si + a_ns * ni  # (.) (x) sn6
+                v = a_sn * si + a_nn * ni  # (.) (x) nn6
+                z = a_rr * rn6[i]          # (.) (x) rn6
+                rhs[i] -= ra * (s_t * si + dil * ni)
                 for j in range(6):
-                    J[i, j] += f1 * sn6[j] + f2 * rn6[j]
-        inv_st = 1.0 / sigma_t
+                    J[i, j] += u * sn6[j] + v * nn[j] + z * rn6[j]
+        # the plane's flow m and b (kept over the scratch rows for the Newton step and the tangent)
+        ws_ = wt * slip
         for i in range(6):
             s_i = s_t * sn6[i]
-            rn6[i] = (s_i + ratio * nn[i]) * inv_st  # b = d etah / d sigma
-            sn6[i] = s_i + dil * nn[i]                # m (2.7)
-        m = sn6
-        b = rn6
-        for i in range(6):
-            R[i] += wt * slip * m[i]  # (2.9)
-        if want_jac:
-            # d m / d sigma = (turning, above) + nn6 (x) (b + eta_c w' nn6); d dkappa / d sigma = cb b
-            cw = law.eta_c_ratio * ef * dwc
-            for i in range(6):
-                fi = wt * (slip * nn[i] + cb * m[i])
-                gi = wt * slip * cw * nn[i]
-                rhs[i] -= wt * m[i] * alpha
-                for j in range(6):
-                    J[i, j] += fi * b[j] + gi * nn[j]
+            m_i = s_i + dil * nn[i]
+            R[i] += ws_ * m_i  # (2.9)
+            rn6[i] = (s_i + ratio * nn[i]) * inv_st  # b
+            sn6[i] = m_i                             # m
     # mean-stress cut-off
     p = (sig[0] + sig[1] + sig[2]) / 3.0
     phi0, (pu0, pv0) = _fb(dl, -p / law.bulk, True)
@@ -354,7 +362,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
         cmax = max(cmax, abs(law.comp[i, i]))
     floor = 1e-14 * floor * cmax  # round-off of S (sigma - sigma_n)
     dl = dl_in
-    ok, merit, rmax, phimax, phi0 = evaluate(law, pt, sig, dk, dl, True, plane, ws)
+    ok, merit, rmax, phimax, phi0 = evaluate(law, pt, opt.stabilisation, sig, dk, dl, True, plane, ws)
     if not ok:
         return False, 0, dl
     for it in range(opt.maxit + 1):
@@ -379,7 +387,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
             for a in range(M):
                 dk_try[a] = dk[a] + alpha * dk_step[a] if strong[a] else 0.0
             dl_try = dl + alpha * step[6]
-            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pt, sig_try, dk_try, dl_try, True, trial_plane, ws)
+            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pt, opt.stabilisation, sig_try, dk_try, dl_try, True, trial_plane, ws)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
@@ -398,20 +406,23 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def _ratios(law, sig, shift, out, scratch):
+def _ratios(law, sig, shift, out):
     """Mobilised ratio etah_a of every plane at ``sig`` into ``out`` (inf where sigma~ <= 0)."""
     for a in range(law.normals.shape[0]):
-        sigma_t, tau, T = plane_kinematics(sig, law.normals[a], shift[a], law.rounding, scratch[0], scratch[1])
+        sigma_t, tau, T, _, _, _ = plane_stress(sig, law.normals[a], shift[a], law.rounding)
         out[a] = T / sigma_t if sigma_t > 0.0 else np.inf
 
 
 @njit(cache=True, error_model="numpy")
-def _is_elastic(law, trial, kap_n, soft, eta_f, ratios):
-    """The elastic trial is the solution: no plane above its reached level, no mean tension."""
+def _is_elastic(law, trial, kap_n, soft, eta_f, shift):
+    """The elastic trial is the solution: no mean tension, no plane above its reached level (stops at the
+    first plane that loads)."""
     if trial[0] + trial[1] + trial[2] > 0.0:
         return False
     for a in range(kap_n.shape[0]):
-        if not ratios[a] <= hardening(kap_n[a], eta_f[a], law.zeta, law.A, law.kstar, soft, law.residual)[0]:
+        sigma_t, tau, T, _, _, _ = plane_stress(trial, law.normals[a], shift[a], law.rounding)
+        if not (sigma_t > 0.0 and T <= sigma_t * hardening(kap_n[a], eta_f[a], law.zeta, law.A, law.kstar, soft,
+                                                              law.residual)[0]):
             return False
     return True
 
@@ -468,7 +479,7 @@ def _lemke(tab, basis, n, maxpivots):
 
 
 @njit(cache=True, error_model="numpy")
-def _rate_active_set(law, pt, ws):
+def _rate_active_set(law, pt, mu, ws):
     """Choose the branch of every plane on its kink at sigma_n by the rate problem (sets ``pt.select``).
 
     The planes on their hardening curve at sigma_n load at rates x >= 0 with the rates of their
@@ -482,13 +493,14 @@ def _rate_active_set(law, pt, ws):
     sig = pt.sig_n
     hard = ws.dk_try  # eta' of each plane on its curve (scratch)
     for a in range(M):
-        sigma_t, tau, T = plane_kinematics(sig, law.normals[a], pt.shift[a], law.rounding, ws.mvec[a], ws.bvec[a])
+        sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], law.rounding)
+        plane_directions(law.normals[a], ts0, ts1, ts2, tau, ws.mvec[a], ws.bvec[a])
         ratio = T / sigma_t
         eta, deta = hardening(pt.kap_n[a], pt.eta_f[a], law.zeta, law.A, law.kstar, pt.soft, law.residual)
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
-            hard[a] = deta
+            hard[a] = deta + mu / law.A
             # m and b at sigma_n
             s_t = tau / T
             wc, _ = compaction_weight(sigma_t, law.compaction_stress)
@@ -569,14 +581,14 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
         strong[a] = kap_n[a] > law.A or (soft > 0.0 and kap_n[a] >= law.kstar)
         ws.select[a] = True
     sig = vecs[_V_SIG]
-    ratios = ws.dk_try  # scratch
     for i in range(6):
         acc = sig_n[i]
         for j in range(6):
             acc += law.stiff[i, j] * de[j]
         sig[i] = acc
-    _ratios(law, sig, shift, ratios, ws.mvec)
-    if _is_elastic(law, sig, kap_n, soft, eta_f, ratios):
+    if _is_elastic(law, sig, kap_n, soft, eta_f, shift):
+        ratios = ws.dk_try  # scratch
+        _ratios(law, sig, shift, ratios)
         best = 0.0
         for a in range(M):
             kap_out[a] = kap_n[a]
@@ -630,7 +642,8 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
             h = min(2.0 * h, 1.0)
         elif lam_done == 0.0 and not rate_solved:
             # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
-            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, r_scale), ws)
+            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, r_scale),
+                             opt.stabilisation, ws)
             rate_solved = True
         else:
             h *= 0.5
@@ -693,9 +706,8 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
                 dg = dr - ws.plane[a, _P_ETA] / ef  # d g / d eta_f (eta is proportional to eta_f)
                 cm = wt * cb * dg
             else:
-                zef = law.zeta * ef
-                dkap = ws.plane[a, _P_KP] * dr - law.A * ratio * law.zeta / ((zef - ratio) * (zef - ratio))
-                cm = wt * dkap
+                # d slip / d eta_f at fixed stress: (d etah / d eta_f - eta / eta_f) / (eta' + mu / A)
+                cm = wt * ws.plane[a, _P_KP] * (dr - ws.plane[a, _P_ETA] / ef)
             # d m / d eta_f = (d etah / d eta_f - eta_c_ratio (w + eta_f w' d sigma~ / d eta_f)) nn6
             wc, dwc = compaction_weight(ws.plane[a, _P_ST], law.compaction_stress)
             cn = wt * slip * (dr - law.eta_c_ratio * (wc + ef * dwc * dst))

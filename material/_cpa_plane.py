@@ -160,11 +160,34 @@ def ratio_barrier(eta_f, zeta, soft):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def slip_of_ratio(etah, eta_f, zeta, A):
-    """kappa(etah) = A etah / (zeta eta_f - etah), the hardening branch of (2.16) inverted, and its slope."""
+def slip_of_ratio(etah, kappa_n, eta_f, zeta, A, mu):
+    """Slip increment d >= 0 of a weakly mobilised plane at the ratio etah, and dd / d etah.
+
+    The plane's step equation on the hardening branch of (2.16): etah = eta(kappa_n + d) + mu d / A (mu the
+    step stabilisation, :data:`material._cpa_local.Options`), solved in closed form: for mu = 0 the
+    inverted hyperbola d = A etah / (zeta eta_f - etah) - kappa_n, which needs etah < zeta eta_f; for
+    mu > 0 the positive root of (mu/A) d^2 + [zeta eta_f - etah + mu (A + kappa_n)/A] d
+    - [etah (A + kappa_n) - zeta eta_f kappa_n] = 0, finite at any etah. Returns (d, dd/d etah, eta) with
+    d <= 0 meaning no loading (then the derivative is that of the loading branch, for the kink).
+    """
     zef = zeta * eta_f
-    d = zef - etah
-    return A * etah / d, A * zef / (d * d)
+    apk = A + kappa_n
+    c0 = etah * apk - zef * kappa_n  # > 0 iff the plane is above its reached level
+    if mu == 0.0:
+        inv = 1.0 / (zef - etah)
+        d = c0 * inv
+        # (on the branch eta(kappa_n + d) = etah; below the reached level the value is not used)
+        return d, A * zef * inv * inv, etah
+    bq = zef - etah + mu * apk / A
+    disc = np.sqrt(bq * bq + 4.0 * (mu / A) * c0) if bq * bq + 4.0 * (mu / A) * c0 > 0.0 else 0.0
+    if c0 >= 0.0:
+        d = 2.0 * c0 / (bq + disc)
+    else:
+        d = c0 / bq  # (below the level: the sign is all that matters)
+    k = kappa_n + d
+    eta = zef * k / (A + k)
+    deta = zef * A / ((A + k) * (A + k))
+    return d, 1.0 / (deta + mu / A), eta
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -174,8 +197,8 @@ def compaction_weight(sigma_t, p_c):
     if p_c == 0.0:
         return 1.0, 0.0
     s2 = sigma_t * sigma_t
-    d = s2 + p_c * p_c
-    return s2 / d, 2.0 * sigma_t * p_c * p_c / (d * d)
+    inv = 1.0 / (s2 + p_c * p_c)
+    return s2 * inv, 2.0 * sigma_t * p_c * p_c * inv * inv
 
 
 # ------------------------------------------------------------------------------------------ kinematics
@@ -203,22 +226,27 @@ def sym_mandel(out, a0, a1, a2, n0, n1, n2):
 APEX_ROUNDING = 0.1
 
 
-@njit(cache=True, error_model="numpy")
-def plane_kinematics(sig, normal, shift, rounding, sn6, rn6):
-    """The plane's stress measures at the Mandel stress ``sig``.
-
-    ``shift`` is c / eta_f + c_a, ``rounding`` is b. Returns (sigma~, tau, T) and fills
-    sn6 = Mandel(sym(s (x) n)) and rn6 = Mandel(sym(r (x) n)) for an orthonormal pair (s, r) of shear
-    directions of the plane, s along the shear traction (d tau / d sigma = sn6); where the plane carries
-    no shear, a fixed pair (nothing that follows depends on which).
-    """
+@njit(cache=True, inline="always", error_model="numpy")
+def plane_stress(sig, normal, shift, rounding):
+    """The plane's stress measures at the Mandel stress ``sig``: (sigma~, tau, T, t_s), with ``shift``
+    = c / eta_f + c_a, ``rounding`` = b and t_s = (ts0, ts1, ts2) the shear traction."""
     n0, n1, n2 = normal[0], normal[1], normal[2]
     t0, t1, t2 = traction(sig, n0, n1, n2)
     tn = t0 * n0 + t1 * n1 + t2 * n2
     ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
     tau = np.sqrt(ts0 * ts0 + ts1 * ts1 + ts2 * ts2)
+    return -tn + shift, tau, np.sqrt(tau * tau + rounding * rounding), ts0, ts1, ts2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def plane_directions(normal, ts0, ts1, ts2, tau, sn6, rn6):
+    """sn6 = Mandel(sym(s (x) n)) and rn6 = Mandel(sym(r (x) n)) for an orthonormal pair (s, r) of shear
+    directions of the plane, s along the shear traction t_s (d tau / d sigma = sn6); where the plane
+    carries no shear, a fixed pair (nothing that follows depends on which)."""
+    n0, n1, n2 = normal[0], normal[1], normal[2]
     if tau > 0.0:
-        s0, s1, s2 = ts0 / tau, ts1 / tau, ts2 / tau
+        inv = 1.0 / tau
+        s0, s1, s2 = ts0 * inv, ts1 * inv, ts2 * inv
     else:  # any shear direction: the one of the smallest normal component
         if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
             s0, s1, s2 = 0.0, -n2, n1
@@ -230,4 +258,3 @@ def plane_kinematics(sig, normal, shift, rounding, sn6, rn6):
         s0, s1, s2 = s0 / ns, s1 / ns, s2 / ns
     sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
     sym_mandel(rn6, n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0, n0, n1, n2)
-    return -tn + shift, tau, np.sqrt(tau * tau + rounding * rounding)

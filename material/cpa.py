@@ -81,6 +81,7 @@ class _Options:
     maxit: int = 25
     max_halvings: int = 12
     tol: float = 1e-12
+    stabilisation: float = 0.0
 
 
 class CPAModel:
@@ -102,6 +103,12 @@ class CPAModel:
     tol : float
         Convergence of the local solver: |R| <= tol (|d_eps| + |sigma_n| / E) and every
         complementarity residual <= tol (dimensionless).
+    stabilisation : float
+        mu >= 0: the step equation of a loading plane is etah = eta(kappa_n + dkappa) + mu dkappa / A, a
+        hardening of at least mu / A within the step (``docs/cpa_law.md``, section 4). The overstress it
+        allows is of the order of the step's slip, so it vanishes as the steps are refined; it makes
+        the step's complementarity problem uniquely solvable where the coupling of non-associated
+        planes near failure has no unique rate solution. 0 (the default) solves the thesis's law.
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -113,7 +120,7 @@ class CPAModel:
     """
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
-                 maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12,
+                 maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float = 0.0,
                  replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True):
         from material.planes import integration_rule
 
@@ -127,10 +134,12 @@ class CPAModel:
             raise ValueError(f"max_halvings = {max_halvings!r}: allowed 0..30")
         if not (0 < float(tol) < 1e-3):
             raise ValueError(f"tol = {tol!r}: allowed 0 < tol < 1e-3")
+        if not (np.isfinite(float(stabilisation)) and 0.0 <= float(stabilisation) <= 1.0):
+            raise ValueError(f"stabilisation = {stabilisation!r}: allowed 0 <= stabilisation <= 1")
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
-        self.options = _Options(int(maxit), int(max_halvings), float(tol))
+        self.options = _Options(int(maxit), int(max_halvings), float(tol), float(stabilisation))
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
         self.regularise = bool(regularise)
@@ -310,7 +319,7 @@ class CPAModel:
         opening = np.empty(n)
         mobilised = np.empty(n)
         o = self.options
-        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent))
+        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent), o.stabilisation)
         prev_threads = None
         if self.threads is not None:
             import numba

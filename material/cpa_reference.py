@@ -103,7 +103,18 @@ class _Law:
         return ratio, st, g
 
 
-def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong):
+def _weak_slip(law, ratio, kap_n, ef, mu):
+    """Slip of a weak plane from etah = eta(kappa_n + d) + mu d / A (the positive root when mu > 0)."""
+    p = law.p
+    zef = p.zeta * ef
+    if mu == 0.0:
+        return p.A * ratio / (zef - ratio) - kap_n
+    c0 = ratio * (p.A + kap_n) - zef * kap_n
+    bq = zef - ratio + mu * (p.A + kap_n) / p.A
+    return (-bq + np.sqrt(bq * bq + 4 * (mu / p.A) * c0 + 0j)) / (2 * mu / p.A)
+
+
+def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=0.0):
     """F(x) and the slips of all planes for the unknowns x (see the module docstring)."""
     p = law.p
     ns = strong.size
@@ -116,9 +127,9 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong):
     barrier = np.where(np.full(ef.shape, soft > 0), ef, zef)
     weak = np.ones(ratio.shape, bool)
     weak[strong] = False
-    if np.any(st.real <= 0) or np.any((ratio.real >= barrier.real * (1 - 1e-12)) & weak):
+    if np.any(st.real <= 0) or (mu == 0.0 and np.any((ratio.real >= barrier.real * (1 - 1e-12)) & weak)):
         return None, None
-    kr = p.A * ratio / (zef - ratio) - kap_n  # (2.16) inverted
+    kr = _weak_slip(law, ratio, kap_n, ef, mu)  # (2.16) inverted
     on = kr.real >= -_KINK * (p.A + kap_n)  # loading branch at the kink
     dk = np.where(on, np.where(kr.real > 0, kr, kr - kr.real), 0.0 * kr)
     dk = dk.astype(np.result_type(dk, x))
@@ -131,7 +142,7 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong):
     S = ((1 + p.nu) * (sig - sig_n) - p.nu * tr * np.eye(3)) / p.E
     R = S + ep + dl / 3 * np.eye(3) - de
     u = dk[strong] / p.A
-    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) - ratio[strong]
+    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) + mu * dk[strong] / p.A - ratio[strong]
     phi = _fb(u, v)
     phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
     return np.concatenate([_six(R), phi, phi0]), dk
@@ -211,6 +222,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
         h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)))[point]
         soft = p.softening_slip * p.t / h if model.regularise else p.softening_slip
     strong = np.flatnonzero((kap_n > p.A) | ((soft > 0) & (kap_n >= p.kappa_instability)))
+    mu = model.options.stabilisation
     ns = strong.size
     de6 = _six(de)
     r_scale = np.abs(de6).max() + max(np.abs(sig_n).max(), p.apex_stress) / p.E
@@ -230,7 +242,8 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     lam_done, h, halvings = 0.0, 1.0, 0
     while lam_done < 1.0:
         lam = min(1.0, lam_done + h)
-        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong), scale, tol, maxit)
+        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong, mu), scale, tol,
+                        maxit)
         if ok:
             lam_done, x_done, h = lam, x, min(2 * h, 1.0)
         else:
@@ -238,7 +251,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
             halvings += 1
             if halvings > max_halvings:
                 raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
-    args = (sig_n, de6, eps_n, kap_n, soft, strong)
+    args = (sig_n, de6, eps_n, kap_n, soft, strong, mu)
     F, dk = residual(law, x_done, *args)
     J = _jacobian(law, x_done, args, scale)
     # d F / d d_eps by the complex step on the increment (tensor components, shear counted once)
@@ -246,7 +259,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     for j in range(6):
         dc = de6.astype(complex)
         dc[j] += 1j * _H
-        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong)[0].imag / _H * scale
+        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong, mu)[0].imag / _H * scale
     dxde = -np.linalg.solve(J, Fe)[:6]  # d sigma_ij / d d_eps_kl with d_eps_kl and d_eps_lk moved together
     tangent = np.zeros((3, 3, 3, 3))
     for a, (i, j) in enumerate(_IJ):

@@ -77,7 +77,9 @@ VARIANTS = {
     "cohesion": (dict(c0=1.0, omega1_c=0.1, b=(0.2,)), "ottawa_c109", 45.0, DE, 25, None),
     "softening": (dict(zeta=1.05, softening_slip=0.01), "ottawa_c109", 0.0, DE_SHEAR, 200, 0.012),
     "compaction": (dict(compaction_stress=20.0), "ottawa_c109", 10.0, DE, 20, None),
+    "stabilised": (dict(), "ottawa_c109", 30.0, DE, 25, None),
 }
+MODEL_OPTIONS = {"stabilised": dict(stabilisation=0.02)}
 
 
 @pytest.mark.parametrize("variant", list(VARIANTS))
@@ -86,7 +88,8 @@ def test_kernel_equals_the_numpy_reference_point_by_point(variant):
     complex-step Jacobians, no condensation) at every few steps of a path, from the elastic range to
     near failure (and past the peak for the softening law)."""
     changes, preset, alpha, de, n, h = VARIANTS[variant]
-    model = CPAModel(load_preset(preset).replace(**changes), axes=axes_from_alpha(alpha))
+    model = CPAModel(load_preset(preset).replace(**changes), axes=axes_from_alpha(alpha),
+                     **MODEL_OPTIONS.get(variant, {}))
     sig = -100.0 * np.eye(3)[None]
     st = model.initial_state(1, stress=sig[0], element_size=h)
     checked = 0
@@ -254,7 +257,7 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
     plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
     pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
                  ws.select, 1.0)
-    assert L._rate_active_set(law, pt, ws)
+    assert L._rate_active_set(law, pt, 0.0, ws)
     chosen = {int(a) for a in np.flatnonzero(ws.select)}
     # the rate problem by the reference: b_a = d etah_a / d sigma (complex step), m_a, q and H
     ref = _Law(model)
@@ -294,6 +297,32 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
                 solutions.append({int(on[j]) for j in c if x[j] > 0})
     assert len(solutions) == 3  # the rate problem of this point is not uniquely solvable
     assert chosen in solutions
+
+
+def test_step_stabilisation_integrates_the_near_failure_point_and_vanishes_with_the_step():
+    """The near-failure point with three rate solutions has no solution along the branch from the start
+    of its step (it fails); with the step stabilisation mu = 0.02 (a hardening of at least mu / A within
+    the step) its step problem is uniquely solvable and it integrates. On a regular path the
+    stabilisation's effect on the stress is first order in the step: 10x smaller with 10x more steps."""
+    model, d, state = _replay_file("near_failure_point.npz")
+    _, st0, _ = model.update(d["d_strain"], d["stress"], state)
+    assert (st0["status"] == STATUS_FAILED).all()
+    stab = CPAModel(model.params, rule=model.rule, axes=model.axes, stabilisation=0.02)
+    s, st, D = stab.update(d["d_strain"], d["stress"], state)
+    assert (st["status"] == STATUS_OK).all() and np.isfinite(D).all()
+    assert np.abs(s - d["stress"]).max() < 0.1 * np.abs(d["stress"]).max()  # an ordinary small step
+
+    def path_end(mu, n):
+        m = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0), stabilisation=mu)
+        sig = -100.0 * np.eye(3)[None]
+        st = m.initial_state(1, stress=sig[0])
+        for _ in range(n):
+            sig, st, _ = m.update((20 * DE / n)[None], sig, st, tangent=False)
+        return sig[0]
+
+    e10 = np.abs(path_end(0.02, 10) - path_end(0.0, 10)).max()
+    e100 = np.abs(path_end(0.02, 100) - path_end(0.0, 100)).max()
+    assert 0 < e100 < 0.2 * e10, (e10, e100)
 
 
 def _rotation(theta, axis):
@@ -435,6 +464,8 @@ def test_bad_construction_is_named():
         CPAModel("ottawa_c109", max_halvings=31)
     with pytest.raises(ValueError, match="tol"):
         CPAModel("ottawa_c109", tol=0.1)
+    with pytest.raises(ValueError, match="stabilisation = -0.1: allowed 0 <= stabilisation <= 1"):
+        CPAModel("ottawa_c109", stabilisation=-0.1)
 
 
 def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one():
