@@ -76,11 +76,12 @@ class SolverOptions:
     max_iter : Newton iterations per try; max_cuts : successive cut-backs before a clean stop.
     dt_min : smallest load-factor step; grow : dt factor after a step that took <= easy_iter iterations.
     line_search : backtracking steps (0 disables).
-    predictor : first guess of each step's free displacements: "tangent" (from the last converged
-    tangent, so the prescribed displacements spread smoothly into the body), "extrapolate" (the last
-    converged increment scaled by dt / dt_last, the tangent predictor for the first step and after a
-    cut-back: on a monotonic path it already carries the plastic mechanism that the last tangent,
-    taken at the start of the previous step, does not), or "none" (prescribed DOFs only, the rest zero).
+    predictor : first guess of each step's free displacements: "extrapolate" (the default: the last
+    converged increment scaled by dt / dt_last, and the tangent predictor for the first step and after a
+    cut-back; on a monotonic path it carries the plastic mechanism of the last step, which the last
+    tangent, taken at its start, does not: measured on the CPA footing, 6.7 -> 4.1 Newton iterations per
+    step, on the Drucker-Prager footing 2.5 -> 3.3), "tangent" (from the last converged tangent, so the
+    prescribed displacements spread smoothly into the body) or "none" (prescribed DOFs only).
     linear_solver : "superlu" (direct), "amg-gmres" (pyamg smoothed aggregation preconditioning GMRES)
     or "ilu-gmres", or "auto" (the default, chosen by measurement, benchmarks/fe_newton.py: SuperLU for
     plane strain below 200k DOFs and 3D below 10k DOFs, AMG-GMRES above); krylov_tol : relative
@@ -96,7 +97,7 @@ class SolverOptions:
     grow: float = 1.5
     easy_iter: int = 6
     line_search: int = 4
-    predictor: str = "tangent"
+    predictor: str = "extrapolate"
     linear_solver: str = "auto"
     krylov_tol: float = 1e-10
 

@@ -105,6 +105,7 @@ Point = namedtuple("Point", [
     "eta_f", "shift",        # (M,) strengths and shifts c_a / eta_f,a + c_apex at the end of the step
     "strong",                # (M,) bool: slip is an unknown (kappa_n > A, or past a softening peak)
     "select",                # (M,) bool: at its kink a plane takes the loading (True) or elastic branch
+    "floor",                 # (M,) the step stabilisation's hardening floor of each plane [1/m] (0: none)
     "r_scale",               # strain scale of the residual
 ])
 
@@ -118,6 +119,7 @@ Work = namedtuple("Work", [
     "dk", "dk_try", "dk_step", "dk_done",  # (M,) slip increments: iterate, trial, Newton step, last solution
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
+    "floor",                  # (M,) see Point
     "J", "rhs", "step", "piv",  # condensed Newton system (7, 7), (7,), (7,), pivots
     "vecs",                   # (12, 6) small vectors (rows _V_*)
     "mats",                   # (2, 6, 6): d Lambda / d eps, induced correction T
@@ -132,7 +134,7 @@ def make_workspace(M):
     """Scratch arrays of one thread for :func:`point_update` (M planes)."""
     return Work(np.empty((M, 8)), np.empty((M, 8)), np.empty((M, 6)), np.empty((M, 6)), np.empty(M),
                 np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M),
-                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.empty((7, 7)), np.empty(7),
+                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.empty((7, 7)), np.empty(7),
                 np.empty(7), np.empty(7, dtype=np.int64), np.empty((12, 6)), np.empty((2, 6, 6)),
                 np.empty((M, 2 * M + 2)), np.empty(M, dtype=np.int64))
 
@@ -207,7 +209,7 @@ def _fb(u, v, loading):
 
 
 @njit(cache=True, error_model="numpy")
-def evaluate(law, pt, mu, sig, dk, dl, want_jac, plane, ws):
+def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
     """Residuals (and the condensed 7 x 7 Newton system) at the iterate (sig, dk[strong], dl).
 
     Fills ``dk`` of the weak planes (their closed-form slip), ``plane`` (per-plane values, columns
@@ -216,7 +218,7 @@ def evaluate(law, pt, mu, sig, dk, dl, want_jac, plane, ws):
     condensed Jacobian ``ws.J`` (7, 7) and right-hand side ``ws.rhs`` (7,) of the Newton step. Returns
     (admissible, merit, max |R|, max |Phi_a|, |Phi_0|); an iterate is not admissible where a plane's
     shifted normal stress is not positive, a weak plane is at or past its barrier (without
-    stabilisation, ``mu`` = 0), or a strong plane's kappa <= -A/2.
+    stabilisation), or a strong plane's kappa <= -A/2.
     """
     M = law.normals.shape[0]
     comp = law.comp
@@ -256,9 +258,10 @@ def evaluate(law, pt, mu, sig, dk, dl, want_jac, plane, ws):
             if k <= -0.5 * A:
                 return False, np.inf, np.inf, np.inf, np.inf
             eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
-            # with the step stabilisation mu: g = etah - eta(kappa) - mu dkappa / A
-            phi, (pu, pv) = _fb(dk[a] / A, eta + mu * dk[a] / A - ratio, pt.select[a])
-            deta += mu / A
+            # with the step stabilisation's floor h: g = etah - eta(kappa) - h dkappa
+            h = pt.floor[a]
+            phi, (pu, pv) = _fb(dk[a] / A, eta + h * dk[a] - ratio, pt.select[a])
+            deta += h
             phi2 += phi * phi
             phimax = max(phimax, abs(phi))
             slip = dk[a]
@@ -268,9 +271,10 @@ def evaluate(law, pt, mu, sig, dk, dl, want_jac, plane, ws):
             alpha = -phi / den  # d dkappa = alpha + cb b . d sigma
             cb = pv / den
         else:
-            if mu == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
+            h = pt.floor[a]
+            if h == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
-            slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, mu)  # (2.16) inverted
+            slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, h * A)  # (2.16) inverted
             if slip < -_ON_CURVE * (A + kn) or (slip <= 0.0 and not pt.select[a]):
                 kp = 0.0  # elastic (below its curve, or on it with the elastic branch chosen)
             if slip <= 0.0:
@@ -362,7 +366,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
         cmax = max(cmax, abs(law.comp[i, i]))
     floor = 1e-14 * floor * cmax  # round-off of S (sigma - sigma_n)
     dl = dl_in
-    ok, merit, rmax, phimax, phi0 = evaluate(law, pt, opt.stabilisation, sig, dk, dl, True, plane, ws)
+    ok, merit, rmax, phimax, phi0 = evaluate(law, pt, sig, dk, dl, True, plane, ws)
     if not ok:
         return False, 0, dl
     for it in range(opt.maxit + 1):
@@ -387,7 +391,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
             for a in range(M):
                 dk_try[a] = dk[a] + alpha * dk_step[a] if strong[a] else 0.0
             dl_try = dl + alpha * step[6]
-            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pt, opt.stabilisation, sig_try, dk_try, dl_try, True, trial_plane, ws)
+            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pt, sig_try, dk_try, dl_try, True, trial_plane, ws)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
@@ -479,7 +483,7 @@ def _lemke(tab, basis, n, maxpivots):
 
 
 @njit(cache=True, error_model="numpy")
-def _rate_active_set(law, pt, mu, ws):
+def _rate_active_set(law, pt, ws):
     """Choose the branch of every plane on its kink at sigma_n by the rate problem (sets ``pt.select``).
 
     The planes on their hardening curve at sigma_n load at rates x >= 0 with the rates of their
@@ -500,7 +504,7 @@ def _rate_active_set(law, pt, mu, ws):
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
-            hard[a] = deta + mu / law.A
+            hard[a] = deta + pt.floor[a]
             # m and b at sigma_n
             s_t = tau / T
             wc, _ = compaction_weight(sigma_t, law.compaction_stress)
@@ -609,7 +613,15 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
         dmax = max(dmax, abs(de[i]))
     r_scale = dmax + smax * law.comp[0, 0]
     de_lam = vecs[_V_DE]
-    pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, r_scale)
+    # the step stabilisation's floor of each plane: mu times its elastic self-coupling (w/t) G / sigma~
+    g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
+    for a in range(M):
+        if opt.stabilisation > 0.0:
+            sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
+            ws.floor[a] = opt.stabilisation * law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+        else:
+            ws.floor[a] = 0.0
+    pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale)
     # follow the branch in the fraction lam of the increment, from the solution at lam = 0 (the start of
     # the step); Newton's first step from a solution is the tangent predictor of the next fraction
     sig_done = vecs[_V_SIG_DONE]
@@ -642,8 +654,8 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
             h = min(2.0 * h, 1.0)
         elif lam_done == 0.0 and not rate_solved:
             # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
-            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, r_scale),
-                             opt.stabilisation, ws)
+            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale),
+                             ws)
             rate_solved = True
         else:
             h *= 0.5
@@ -706,7 +718,7 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
                 dg = dr - ws.plane[a, _P_ETA] / ef  # d g / d eta_f (eta is proportional to eta_f)
                 cm = wt * cb * dg
             else:
-                # d slip / d eta_f at fixed stress: (d etah / d eta_f - eta / eta_f) / (eta' + mu / A)
+                # d slip / d eta_f at fixed stress: (d etah / d eta_f - eta / eta_f) / (eta' + h)
                 cm = wt * ws.plane[a, _P_KP] * (dr - ws.plane[a, _P_ETA] / ef)
             # d m / d eta_f = (d etah / d eta_f - eta_c_ratio (w + eta_f w' d sigma~ / d eta_f)) nn6
             wc, dwc = compaction_weight(ws.plane[a, _P_ST], law.compaction_stress)

@@ -163,8 +163,9 @@ def ratio_barrier(eta_f, zeta, soft):
 def slip_of_ratio(etah, kappa_n, eta_f, zeta, A, mu):
     """Slip increment d >= 0 of a weakly mobilised plane at the ratio etah, and dd / d etah.
 
-    The plane's step equation on the hardening branch of (2.16): etah = eta(kappa_n + d) + mu d / A (mu the
-    step stabilisation, :data:`material._cpa_local.Options`), solved in closed form: for mu = 0 the
+    The plane's step equation on the hardening branch of (2.16): etah = eta(kappa_n + d) + mu d / A (mu / A
+    the step stabilisation's hardening floor of the plane, :mod:`material._cpa_local`), solved in closed
+    form: for mu = 0 the
     inverted hyperbola d = A etah / (zeta eta_f - etah) - kappa_n, which needs etah < zeta eta_f; for
     mu > 0 the positive root of (mu/A) d^2 + [zeta eta_f - etah + mu (A + kappa_n)/A] d
     - [etah (A + kappa_n) - zeta eta_f kappa_n] = 0, finite at any etah. Returns (d, dd/d etah, eta) with

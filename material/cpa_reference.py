@@ -107,16 +107,18 @@ def _weak_slip(law, ratio, kap_n, ef, mu):
     """Slip of a weak plane from etah = eta(kappa_n + d) + mu d / A (the positive root when mu > 0)."""
     p = law.p
     zef = p.zeta * ef
-    if mu == 0.0:
+    if np.all(mu == 0.0):
         return p.A * ratio / (zef - ratio) - kap_n
     c0 = ratio * (p.A + kap_n) - zef * kap_n
     bq = zef - ratio + mu * (p.A + kap_n) / p.A
     return (-bq + np.sqrt(bq * bq + 4 * (mu / p.A) * c0 + 0j)) / (2 * mu / p.A)
 
 
-def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=0.0):
-    """F(x) and the slips of all planes for the unknowns x (see the module docstring)."""
+def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None):
+    """F(x) and the slips of all planes for the unknowns x (see the module docstring); ``mu`` (M,) the
+    step stabilisation's hardening floor of each plane [1/m] (None: none)."""
     p = law.p
+    mu = np.zeros(len(kap_n)) if mu is None else mu
     ns = strong.size
     sig = _sym(x[:6])
     dl = x[6 + ns]
@@ -127,9 +129,9 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=0.0):
     barrier = np.where(np.full(ef.shape, soft > 0), ef, zef)
     weak = np.ones(ratio.shape, bool)
     weak[strong] = False
-    if np.any(st.real <= 0) or (mu == 0.0 and np.any((ratio.real >= barrier.real * (1 - 1e-12)) & weak)):
+    if np.any(st.real <= 0) or np.any((ratio.real >= barrier.real * (1 - 1e-12)) & weak & (mu == 0.0)):
         return None, None
-    kr = _weak_slip(law, ratio, kap_n, ef, mu)  # (2.16) inverted
+    kr = _weak_slip(law, ratio, kap_n, ef, mu * p.A)  # (2.16) inverted
     on = kr.real >= -_KINK * (p.A + kap_n)  # loading branch at the kink
     dk = np.where(on, np.where(kr.real > 0, kr, kr - kr.real), 0.0 * kr)
     dk = dk.astype(np.result_type(dk, x))
@@ -142,7 +144,7 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=0.0):
     S = ((1 + p.nu) * (sig - sig_n) - p.nu * tr * np.eye(3)) / p.E
     R = S + ep + dl / 3 * np.eye(3) - de
     u = dk[strong] / p.A
-    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) + mu * dk[strong] / p.A - ratio[strong]
+    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) + mu[strong] * dk[strong] - ratio[strong]
     phi = _fb(u, v)
     phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
     return np.concatenate([_six(R), phi, phi0]), dk
@@ -222,7 +224,9 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
         h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)))[point]
         soft = p.softening_slip * p.t / h if model.regularise else p.softening_slip
     strong = np.flatnonzero((kap_n > p.A) | ((soft > 0) & (kap_n >= p.kappa_instability)))
-    mu = model.options.stabilisation
+    # the step stabilisation's floor of each plane: mu (w/t) G / sigma~ at sigma_n
+    st_n = law.planes(sig_n, law.eta_f(eps_n + _sym(_six(np.asarray(d_strain, float).reshape(-1, 3, 3)[point]))))[1]
+    mu = model.options.stabilisation * law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)
     ns = strong.size
     de6 = _six(de)
     r_scale = np.abs(de6).max() + max(np.abs(sig_n).max(), p.apex_stress) / p.E

@@ -10,6 +10,7 @@ Format::
     preset = "ottawa_c109"        # cpa: a preset name, or parameters = "my_sand.toml"
     rule = "bazant-oh-33"         # cpa: integration rule of the planes
     set = { beta = 5.0 }          # cpa: parameters to change (CPAParameters.replace)
+    stabilisation = 0.1           # cpa: the step stabilisation of CPAModel (default 0: the thesis's law)
     # von_mises: E_kPa, nu, yield_stress_kPa, hardening_kPa
     # drucker_prager: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg, match, hardening_kPa
     # linear_elastic: E_kPa, nu
@@ -32,7 +33,7 @@ __all__ = ["load_case", "run_case", "CASES", "LAWS"]
 
 CASES = ("element", "triaxial", "footing", "biaxial")
 LAWS = {
-    "cpa": ("preset", "parameters", "rule", "set"),
+    "cpa": ("preset", "parameters", "rule", "set", "stabilisation"),
     "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "linear_elastic": ("E_kPa", "nu"),
@@ -74,7 +75,8 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
             params = mlib.load_preset(spec.get("preset", "ottawa_c109"))
         if spec.get("set"):
             params = params.replace(**spec["set"])
-        return make_material(params, alpha_deg, plane_strain=plane_strain, rule=spec.get("rule", "bazant-oh-33"))
+        return make_material(params, alpha_deg, plane_strain=plane_strain, rule=spec.get("rule", "bazant-oh-33"),
+                             stabilisation=float(spec.get("stabilisation", 0.0)))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
     try:
         return cls(**spec)

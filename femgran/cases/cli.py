@@ -39,9 +39,10 @@ def _material(args, alpha, plane_strain):
     from femgran.cases.casefile import build_material
 
     if args.law == "cpa":
-        spec = {"law": "cpa", "preset": args.preset, "set": _parse_set(args.set)}
+        spec = {"law": "cpa", "preset": args.preset, "set": _parse_set(args.set), "stabilisation": args.stabilisation}
         if args.parameters:
-            spec = {"law": "cpa", "parameters": args.parameters, "set": _parse_set(args.set)}
+            spec = {"law": "cpa", "parameters": args.parameters, "set": _parse_set(args.set),
+                    "stabilisation": args.stabilisation}
     elif args.law == "von_mises":
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
     elif args.law == "drucker_prager":
@@ -58,6 +59,9 @@ def _common(p, default_out):
     g.add_argument("--preset", default="ottawa_c109", help="CPA preset (default ottawa_c109)")
     g.add_argument("--parameters", help="CPA parameter file (TOML/JSON) instead of a preset")
     g.add_argument("--set", action="append", metavar="NAME=VALUE", help="change a CPA parameter (repeatable)")
+    g.add_argument("--stabilisation", type=float, default=0.0, metavar="MU",
+                   help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
+                        "carry a footing to its end, docs/cpa_law.md section 4)")
     g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
     g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")

@@ -23,13 +23,15 @@ def axes_plane_strain(alpha_deg: float) -> np.ndarray:
     return np.column_stack([e1, e2, np.cross(e1, e2)])
 
 
-def make_material(material, alpha_deg: float, *, plane_strain: bool, rule: str = "bazant-oh-33"):
+def make_material(material, alpha_deg: float, *, plane_strain: bool, rule: str = "bazant-oh-33",
+                  stabilisation: float = 0.0):
     """The material of a case.
 
     ``None``: the default CPA law ``CPAModel(load_preset("ottawa_c109"))``; a preset name or
     CPAParameters: a CPAModel; in both cases with material axes for ``alpha_deg`` (3D: z vertical,
-    :func:`material.anisotropy.axes_from_alpha`; plane strain: y vertical, :func:`axes_plane_strain`).
-    A material object is used as given (its own axes; ``alpha_deg`` is only recorded).
+    :func:`material.anisotropy.axes_from_alpha`; plane strain: y vertical, :func:`axes_plane_strain`)
+    and the step ``stabilisation`` of :class:`material.CPAModel`. A material object is used as given
+    (its own axes and options; ``alpha_deg`` is only recorded).
     """
     from material import CPAModel, CPAParameters, load_preset
     from material.anisotropy import axes_from_alpha
@@ -37,7 +39,7 @@ def make_material(material, alpha_deg: float, *, plane_strain: bool, rule: str =
     if material is None or isinstance(material, (str, CPAParameters)):
         params = load_preset("ottawa_c109" if material is None else material) if not isinstance(material, CPAParameters) else material
         axes = axes_plane_strain(alpha_deg) if plane_strain else axes_from_alpha(alpha_deg)
-        return CPAModel(params, rule=rule, axes=axes)
+        return CPAModel(params, rule=rule, axes=axes, stabilisation=stabilisation)
     return material
 
 
@@ -59,6 +61,9 @@ def material_record(material) -> dict:
     for attr in ("E", "nu", "yield_stress", "hardening"):
         if hasattr(material, attr):
             rec[attr] = float(getattr(material, attr))
+    options = getattr(material, "options", None)
+    if options is not None and hasattr(options, "__dataclass_fields__"):
+        rec["options"] = {k: getattr(options, k) for k in options.__dataclass_fields__}
     axes = getattr(material, "axes", None)
     if axes is not None:
         rec["axes_columns_e1_e2_e3"] = np.asarray(axes).tolist()

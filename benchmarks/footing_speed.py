@@ -1,0 +1,79 @@
+"""CPA footing against the Drucker-Prager footing on the same mesh: wall time, steps, Newton iterations.
+
+The strip footing of ``femgran.cases.footing`` (rough, B = 1 m, gamma = 18 kN/m^3, no surcharge, to
+s = 0.1 B in 40 nominal steps) on the default mesh, four soils:
+
+* ``drucker-prager``: the plane-strain-matched cone, c = 0, phi = 30 deg, associated (the baseline);
+* ``cpa-isotropic``: the CPA law as the same Mohr-Coulomb solid (isotropic eta = tan 30 deg,
+  associated at failure: eta_c = 0, fast hardening A = 1e-5 m);
+* ``cpa-thesis``: the thesis sand ``ottawa_c109`` at alpha = 0, with every option at its default;
+* ``cpa-thesis-stabilised``: the same with the local step stabilisation of ``CPAModel``.
+
+Each run is timed in this process, after a warm-up that compiles the kernels; the ratio to the
+Drucker-Prager time is printed (target <= 5). Runs that share the cores disturb each other: run it on an
+idle machine, one numba thread (``NUMBA_NUM_THREADS=1``) for a per-core figure.
+
+    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--soils cpa-isotropic ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def _material(name: str, E: float, stabilisation: float):
+    from material import CPAModel, DruckerPrager, load_preset
+    from femgran.cases.common import axes_plane_strain
+
+    if name == "drucker-prager":
+        return DruckerPrager(E, 0.3, cohesion_kPa=0.0, friction_deg=30.0)
+    if name == "cpa-isotropic":
+        p = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
+                                               A=1e-5, E=E)
+        return CPAModel(p, axes=axes_plane_strain(0.0))
+    p = load_preset("ottawa_c109").replace(E=E)
+    mu = stabilisation if name == "cpa-thesis-stabilised" else 0.0
+    return CPAModel(p, axes=axes_plane_strain(0.0), stabilisation=mu)
+
+
+SOILS = ("drucker-prager", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised")
+
+
+def main(argv=None) -> None:
+    from femgran.cases import footing
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--E", type=float, default=6000.0, help="Young's modulus of every soil [kPa]")
+    ap.add_argument("--resolution", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--stabilisation", type=float, default=0.1, help="mu of cpa-thesis-stabilised")
+    ap.add_argument("--soils", nargs="+", default=list(SOILS), choices=SOILS)
+    args = ap.parse_args(argv)
+    footing(_material("cpa-thesis", args.E, 0.0), resolution=1, steps=2, settlement_m=0.002, plots=False)  # compile
+    rows = {}
+    for soil in args.soils:
+        t0 = time.perf_counter()
+        sol = footing(_material(soil, args.E, args.stabilisation), resolution=args.resolution, steps=args.steps,
+                      plots=False)
+        wall = time.perf_counter() - t0
+        h = sol.history
+        its = h["iterations"][1:]
+        rows[soil] = (wall, sol)
+        print(f"{soil:<24} {'done' if sol.completed else 'STOPPED':<8} s = {h['settlement_m'][-1]:.4f} m  "
+              f"p = {h['pressure_kPa'][-1]:7.1f} kPa  steps {len(h) - 1:4d}  iterations/step {its.mean():5.2f}  "
+              f"{wall:7.1f} s", flush=True)
+        if not sol.completed:
+            print(f"{'':<24} {sol.stop_reason}")
+    if "drucker-prager" in rows:
+        base = rows["drucker-prager"][0]
+        for soil, (wall, sol) in rows.items():
+            if soil != "drucker-prager":
+                print(f"time {soil} / drucker-prager: {wall / base:.1f}"
+                      f"{'' if sol.completed else ' (stopped early)'}  (target <= 5)")
+
+
+if __name__ == "__main__":
+    main()
