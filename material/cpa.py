@@ -22,7 +22,7 @@ never NaN; its inputs are kept (and written to ``replay_dir``) so :func:`replay`
 Decisions not fixed by the thesis (``docs/cpa_law.md`` gives the reasons and the measurements)
 -------------------------------------------------------------------------------------------
 * The apex: the mobilised ratio is sqrt(tau^2 + b^2) / (sigma_N + c / eta_f + c_a), with
-  c_a = :attr:`CPAParameters.apex_stress` (default 0.05 kPa) and b = c_a / 10: every loading surface is
+  c_a = :attr:`CPAParameters.apex_stress` (default 0.04 kPa) and b = c_a / 10: every loading surface is
   a convex cone with a rounded tip in tension, so a point can reach and leave zero stress without a
   singularity; a cohesion enters as a shift of the normal stress (the failure surface
   tau = c + eta_f sigma_N is the thesis's).

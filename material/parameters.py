@@ -29,7 +29,7 @@ __all__ = [
 _FILE_FORMAT = "femgran-cpa-parameters"
 #: Default apex stress of the planes [kPa] (:attr:`CPAParameters.apex_stress`; its choice is measured
 #: in ``docs/cpa_law.md``).
-APEX_STRESS_KPA = 0.05
+APEX_STRESS_KPA = 0.04
 #: Default normal stress below which the planes' compaction fades [kPa] (:attr:`CPAParameters.compaction_stress`).
 COMPACTION_STRESS_KPA = 2.0
 _FILE_VERSION = 1
@@ -89,9 +89,9 @@ class CPAParameters:
         c_a [kPa], > 0: the normal tension at which every plane's loading cone has its apex. The
         mobilised ratio is sqrt(tau^2 + b^2) / (sigma_N + c / eta_f + c_a), b = c_a / 10, in place of
         (tau - c) / sigma_N: each loading surface is a convex cone with a rounded tip in tension, so the
-        law is smooth through zero stress, a stress-free plane is mobilised to 0.1 and the strength at a
-        normal stress sigma_N exceeds the thesis's by about c_a / sigma_N (``docs/cpa_law.md``; 0.05 kPa:
-        0.3 % at 18 kPa, the critical plane of a triaxial test at p0 = 10 kPa).
+        law is smooth through zero stress and a stress-free plane is mobilised to 0.1. Shifting every
+        normal stress by c_a acts like raising the confinement by c_a: the drained triaxial strength at
+        p0 rises by c_a / p0 (``docs/cpa_law.md``; the default 0.04 kPa: 0.4 % at p0 = 10 kPa).
     compaction_stress : float
         p_c [kPa], >= 0: the compaction-dilation transition of a plane is eta_c w with
         w = s^2 / (s^2 + p_c^2), s = sigma_N + c / eta_f + c_a, so a plane compacts as the thesis says at

@@ -192,3 +192,17 @@ def test_model_axes_must_match_alpha(c109):
     res = driver.triaxial(CPAModel(c109, axes=axes_from_alpha(90.0)), alpha_deg=90.0, axial_strain=0.01, steps=5)
     ref = driver.triaxial(c109, alpha_deg=90.0, axial_strain=0.01, steps=5)
     assert np.allclose(res["q_kPa"], ref["q_kPa"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("p0,alpha", [(10.0, 0.0), (10.0, 90.0), (100.0, 0.0)])
+def test_default_apex_stress_changes_the_triaxial_strength_by_less_than_half_a_percent(c109, p0, alpha):
+    """The apex stress c_a shifts every plane's normal stress by c_a, which acts like raising the
+    confinement by c_a: the drained triaxial strength rises by c_a / p0 (0.4 % at p0 = 10 kPa for the
+    default 0.04 kPa; to 10 %, the tip rounding b = c_a / 10 aside) against the thesis's cone (c_a -> 0;
+    1e-4 kPa here)."""
+    assert c109.apex_stress == 0.04
+    q = {a: driver.triaxial(c109.replace(apex_stress=a), p0_kPa=p0, alpha_deg=alpha, axial_strain=0.15,
+                            steps=300)["q_kPa"].max() for a in (1e-4, c109.apex_stress)}
+    change = q[c109.apex_stress] / q[1e-4] - 1
+    assert 0 < change < 0.005
+    assert change == pytest.approx((c109.apex_stress - 1e-4) / p0, rel=0.1)
