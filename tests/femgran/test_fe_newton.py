@@ -300,6 +300,27 @@ def test_a_step_is_accepted_only_below_the_tolerance():
     assert patient.completed and patient.history["residual"].max() <= patient.history["residual"][0] + 1e-8
 
 
+def test_line_search_halves_a_twice_too_long_step_and_never_takes_a_non_descent_step(tmp_path):
+    """Elastic cube, tangent 0.5 x the true one: every Newton correction is twice the exact one, so the
+    full step leaves |r| unchanged (the logged residual is relative to the reaction, which changes). The quadratic model through |r(0)|, its slope and |r(1)| = |r(0)|
+    puts the minimum at s = 1/2, which is the exact solution: one rejected trial, then convergence.
+    A tangent with the wrong sign gives no decrease at any step length: the step fails with a message
+    instead of taking an uphill step, and the run stops cleanly."""
+    from femgran.diagnostics import NewtonLog
+
+    d, bcs = _plastic_cube()
+    log = NewtonLog()
+    sol = NewtonSolver(d, _StiffTangent(material.LinearElastic(1e4, 0.3), 0.5), bcs, log=log,
+                       options=SolverOptions(predictor="none")).run(1)
+    assert sol.completed
+    t = log.table()
+    assert list(t["accepted"]) == [1, 0, 1] and t["line_search"][1:].tolist() == [1.0, 0.5]
+    assert t["residual"][2] < 1e-12
+    uphill = NewtonSolver(d, _StiffTangent(material.LinearElastic(1e4, 0.3), -1.0), bcs,
+                          options=SolverOptions(max_cuts=1, predictor="none")).run(1)
+    assert not uphill.completed and "line search: no decrease" in uphill.stop_reason
+
+
 def test_newton_log_records_switching_points_and_the_convergence_rate(tmp_path):
     """The log of a von Mises cube that turns plastic all at once: every point loads, none switches
     between iterations, the accepted residuals converge quadratically (rate near 2), and the CSV holds
