@@ -518,8 +518,12 @@ class NewtonSolver:
                 cuts += 1
                 ratio = min(0.5, max(exc.ratio, 0.1))
                 dt *= ratio
-                if cuts > opt.max_cuts or dt < opt.dt_min:
+                if cuts > opt.max_cuts:
                     reason = f"stopped at t = {self.t:.6g}: {exc.reason}; {cuts - 1} cut-backs did not help"
+                    break
+                if dt < opt.dt_min:
+                    reason = (f"stopped at t = {self.t:.6g}: {exc.reason}; the next load step, {dt:.2g}, would be "
+                              f"below dt_min = {opt.dt_min:g} (the steps had already been cut to {dt / ratio:.2g})")
                     break
                 if bar is not None:
                     bar.set_postfix_str(f"cut-back ({exc.reason}), dt={dt:.3g}")

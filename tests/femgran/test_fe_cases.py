@@ -70,6 +70,31 @@ def test_prandtl_mesh_convergence_within_three_percent():
     assert ratios[-1] < 1.03
 
 
+@pytest.mark.slow
+def test_isotropic_cpa_footing_against_drucker_prager_cones():
+    """The CPA law as an isotropic Mohr-Coulomb solid (eta0 = tan 30 deg, associated at failure, fast
+    hardening), E = 60 MPa, on the coarse mesh, reaches s = 0.1 B and a plateau. It is 11 % stronger than
+    the cone matched to Mohr-Coulomb with phi = 30 deg, because the 33 planes' plane-strain strength
+    exceeds Mohr-Coulomb's by 0-11 % with the orientation of the principal axes, 3.2 % on average
+    (tests/material/test_driver_cpa.py), and N_gamma amplifies half a degree of friction into about
+    9 % of capacity. The cone with that average strength (phi = 30.5 deg: q13 = 206.1 kPa at p0 = 100 kPa
+    against the planes' mean 206.4) agrees within 3 %. Measured: CPA 268.2, DP(30) 241.3, DP(30.5)
+    262.5 kPa."""
+    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
+                                             A=1e-5, E=60000.0)
+    runs = {"cpa": CPAModel(iso), "dp30": material.DruckerPrager(60000.0, 0.3, 0.0, 30.0),
+            "dp30.5": material.DruckerPrager(60000.0, 0.3, 0.0, 30.5)}
+    p = {}
+    for name, mat in runs.items():
+        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=2, plots=False)
+        assert sol.completed, (name, sol.stop_reason)
+        assert sol.history["residual"].max() <= 1e-8
+        p[name] = sol.history["pressure_kPa"][-1]
+    print("isotropic CPA against Drucker-Prager, p(0.1 B) [kPa]:", p)
+    assert 1.08 < p["cpa"] / p["dp30"] < 1.14
+    assert abs(p["cpa"] / p["dp30.5"] - 1) < 0.03
+
+
 def test_footing_self_weight_and_surcharge_start_in_equilibrium():
     """Elastic layer: the geostatic state with surcharge is in equilibrium, the pressure starts at q_s."""
     sol = footing(material.LinearElastic(2e4, 0.3), 1.0, 18.0, 10.0, True, settlement_m=0.01, steps=2, resolution=1,
