@@ -20,6 +20,10 @@ line-search trials included) with
 
 The rows are kept in memory (:attr:`NewtonLog.rows`, also as :meth:`NewtonLog.table`) and, with a
 path, appended to a CSV file as they come (``newton_log.csv`` in a case's run folder).
+
+:func:`kinks_along` looks inside one iteration: it evaluates the material along a Newton direction and
+finds the points whose response has a kink there (and where), which is what makes a full Newton step
+overshoot; :func:`solver_kinks_along` does the same from a solver's increment and direction.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED
 
-__all__ = ["NewtonLog", "COLUMNS"]
+__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
@@ -127,3 +131,46 @@ class NewtonLog:
             "median_rate": float(np.nanmedian(t["rate"])) if np.isfinite(t["rate"]).any() else math.nan,
         }
         return out
+
+
+def kinks_along(material, stress, state, d_strain, direction, s) -> dict[str, np.ndarray]:
+    """The material's response along the straight path d_strain + s * direction, s in ``s`` (uniform).
+
+    stress (N, 3, 3) and state: the committed start of the step; d_strain, direction (N, 3, 3): the
+    strain increment of the current iterate and of the Newton direction. Each s is one material call
+    from the committed state (as the solver makes them). Per point the stress rate along s,
+    d sigma / ds, is taken on each interval; its largest jump between neighbouring intervals, relative
+    to the largest rate of that point, is ``slope_jump`` (about h times the curvature where the response
+    is smooth, of order 1 at a kink), at ``s_kink`` (the grid point between the two intervals). Where
+    the state has ``loading`` (CPA), ``loading_before`` / ``loading_after`` count the loading planes on
+    either side of the kink. Also ``rate`` (N,): the largest |d sigma / ds| [kPa per unit s].
+    """
+    s = np.asarray(s, dtype=float)
+    if s.ndim != 1 or s.size < 3 or not np.allclose(np.diff(s), s[1] - s[0]) or s[1] <= s[0]:
+        raise ValueError(f"s: need at least 3 increasing, equally spaced values, got {s!r}")
+    n = len(stress)
+    sig, loading = [], []
+    for si in s:
+        copy = {k: np.array(v, copy=True) for k, v in state.items()}
+        out, st, _ = material.update(d_strain + si * direction, stress, copy)
+        sig.append(out.reshape(n, 9))
+        if "loading" in st:
+            loading.append(np.asarray(st["loading"]).sum(axis=1))
+    sig = np.array(sig)  # (ns, N, 9)
+    slope = np.diff(sig, axis=0) / (s[1] - s[0])  # (ns - 1, N, 9)
+    rate = np.abs(slope).max(axis=(0, 2))
+    jump = np.abs(np.diff(slope, axis=0)).max(axis=2) / np.maximum(rate, 1e-300)  # (ns - 2, N)
+    k = jump.argmax(axis=0)
+    pts = np.arange(n)
+    out = {"slope_jump": jump[k, pts], "s_kink": s[k + 1], "rate": rate}
+    if loading:
+        loading = np.array(loading)
+        out["loading_before"], out["loading_after"] = loading[k, pts], loading[k + 2, pts]
+    return out
+
+
+def solver_kinks_along(solver, du, ddu, s) -> dict[str, np.ndarray]:
+    """:func:`kinks_along` for a :class:`femgran.solver.NewtonSolver` at the iterate du with Newton
+    direction ddu (displacement vectors), from its committed stress and state."""
+    d_strain, direction = solver.disc.strain(du), solver.disc.strain(ddu)  # the strain is linear in u
+    return kinks_along(solver.points.material, solver.points.stress, solver.points.state, d_strain, direction, s)

