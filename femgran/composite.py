@@ -3,8 +3,10 @@
 :class:`Composite` is itself a material (``initial_state`` / ``update``), so the solver is unchanged.
 Each law keeps its own state, stored at full size N under prefixed keys (``"<k>:<key>"``, k the index of
 the law) and updated only on its own points; the shared keys every law has (``"strain"``, ``"status"``,
-``"step_ratio"``, and ``"plastic_strain"`` / ``"mobilised_ratio"`` / ``"kappa"`` where present in the
-first law) are merged at full size for the solver and the output.
+``"step_ratio"``) and the keys of :data:`_MERGED` that the laws having them give in the same shape
+(plastic strain, mobilised ratio, the planes' slips and loading flags, the local solver's counts: what
+the output and :class:`femgran.diagnostics.NewtonLog` read) are merged at full size; a point of a law
+without such a key gets zeros there.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from material.base import STATUS_OK, as_stress_batch, check_batch
 __all__ = ["Composite"]
 
 _SHARED = ("strain", "status", "step_ratio")
+_MERGED = ("plastic_strain", "mobilised_ratio", "eq_plastic_strain", "kappa", "loading", "near_apex", "iterations",
+           "continuation")
 
 
 class Composite:
@@ -79,14 +83,14 @@ class Composite:
 
     def _merge(self, state):
         n = self.assignment.size
-        for key in ("plastic_strain", "mobilised_ratio", "eq_plastic_strain"):
-            if any(f"{k}:{key}" in state for k in range(len(self.laws))):
-                shape = next(state[f"{k}:{key}"].shape for k in range(len(self.laws)) if f"{k}:{key}" in state)
-                full = np.zeros(shape)
-                for k, idx in enumerate(self.index):
-                    if f"{k}:{key}" in state:
-                        full[idx] = state[f"{k}:{key}"][idx]
-                state[key] = full
+        for key in _MERGED:
+            parts = [(idx, state[f"{k}:{key}"]) for k, idx in enumerate(self.index) if f"{k}:{key}" in state]
+            if not parts or any(arr.shape != parts[0][1].shape for _, arr in parts):
+                continue  # no law has it, or the laws disagree on its shape (e.g. different plane rules)
+            full = np.zeros(parts[0][1].shape, dtype=parts[0][1].dtype)
+            for idx, arr in parts:
+                full[idx] = arr[idx]
+            state[key] = full
         for key in _SHARED:
             for k, idx in enumerate(self.index):
                 if f"{k}:{key}" in state:
