@@ -20,7 +20,7 @@ def main(argv=None) -> None:
     import femgran.solver as solver_module
     from femgran.cases import footing
     from femgran.diagnostics import solver_kinks_along
-    from material import CPAModel, load_preset
+    from footing_speed import _material  # the same soils as the speed benchmark (this folder is on the path)
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--E", type=float, default=60000.0)
@@ -55,9 +55,7 @@ def main(argv=None) -> None:
 
     solver_module.NewtonSolver.step, solver_module.NewtonSolver._line_search = step, probed
     try:
-        params = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
-                                                    A=1e-5, E=args.E)
-        footing(CPAModel(params), resolution=args.resolution, steps=40,
+        footing(_material("cpa-isotropic", args.E, 0.0), resolution=args.resolution, steps=40,
                 settlement_m=0.1 * min(40, args.step + 5) / 40, plots=False, out="out/footing_kinks")
     finally:
         solver_module.NewtonSolver.step, solver_module.NewtonSolver._line_search = step_of, line_search
