@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .experiments import Run
+from .experiments import Run, _version
 from .stereology import delta_deg, fabric
 
 
@@ -96,11 +96,7 @@ class Calibration:
                           "(3.15), sign from alpha"),
         }
         meta.update(metadata)
-        try:
-            from femgran import __version__
-            meta.setdefault("version", __version__)
-        except Exception:  # pragma: no cover
-            pass
+        meta.setdefault("version", _version())
         return save_parameters(self.parameters(preset), path, **meta)
 
 

@@ -377,8 +377,10 @@ def rotate_strain(state: DEMState, eps_q: float | None = None, rotation_deg: flo
 
 
 def _version() -> str:
+    """The installed distribution's version (dem never imports the FE package for it)."""
+    from importlib.metadata import PackageNotFoundError, version
+
     try:
-        from femgran import __version__
-        return __version__
-    except Exception:  # pragma: no cover - femgran is part of this package
-        return "unknown"
+        return version("femgran")
+    except PackageNotFoundError:  # a source tree that is not installed
+        return "0.1.0+src"

@@ -19,7 +19,7 @@ _REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from femgran import __version__
+    from material.version import __version__
 
     parser = argparse.ArgumentParser(
         prog="femgran",

@@ -29,8 +29,8 @@ def register(subparsers) -> None:
 
 
 def _run(args) -> int:
-    from femgran import __version__
     from material.figures import make_figures
+    from material.version import __version__
 
     out = Path(args.out)
     written = make_figures(out, names=args.only, full=args.full, progress=not args.no_progress)

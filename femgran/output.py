@@ -85,7 +85,7 @@ def point_fields(solver) -> dict[str, np.ndarray]:
 
 def write_parameters(path, params: dict) -> Path:
     """Write the run parameters (and the package version) as JSON."""
-    from femgran import __version__
+    from material.version import __version__
 
     path = Path(path)
     data = {"femgran_version": __version__, **params}

@@ -156,9 +156,9 @@ def _specific_kwargs(args) -> dict:
 
 
 def _run(args) -> int:
-    from femgran import __version__
     from material import driver
     from material.parameters import save_parameters
+    from material.version import __version__
 
     params = _parameters(args)
     out = Path(args.out)

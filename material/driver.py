@@ -558,7 +558,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     std_cols, std_desc = standard_columns(stress, strain)
     cols.update(std_cols)
     desc.update(std_desc)
-    from femgran import __version__
+    from material.version import __version__
 
     meta = {"test": "path", "stages": stages, "material": repr(model), "femgran_version": __version__,
             "strain_origin": "strains measured from the start of the path"}
