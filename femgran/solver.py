@@ -114,6 +114,37 @@ class SolverOptions:
         if int(self.max_iter) < 1 or int(self.max_cuts) < 0:
             raise ValueError(f"max_iter = {self.max_iter}, max_cuts = {self.max_cuts}: "
                              "need max_iter >= 1, max_cuts >= 0")
+        if not (0 < self.dt_min < 1) or self.grow < 1 or int(self.line_search) < 0 or int(self.easy_iter) < 0:
+            raise ValueError(f"dt_min = {self.dt_min!r}, grow = {self.grow!r}, line_search = {self.line_search!r}, "
+                             f"easy_iter = {self.easy_iter!r}: need 0 < dt_min < 1, grow >= 1, line_search >= 0, "
+                             "easy_iter >= 0")
+        if not (0 < self.krylov_tol < 1) or not (self.force_floor > 0):
+            raise ValueError(f"krylov_tol = {self.krylov_tol!r}, force_floor = {self.force_floor!r}: need "
+                             "0 < krylov_tol < 1, force_floor > 0")
+
+    def to_dict(self) -> dict:
+        """The options as a plain dict (the record a run writes, the ``[solver]`` table of a case file)."""
+        return {f: getattr(self, f) for f in self.__dataclass_fields__}
+
+    @classmethod
+    def resolve(cls, solver=None, where: str = "solver", **overrides) -> "SolverOptions":
+        """SolverOptions from ``solver`` (None: the defaults; a SolverOptions; or a mapping of its fields)
+        with the ``overrides`` whose value is not None applied on top (the cases' ``tol`` and
+        ``linear_solver`` shorthands). A key that is not a field raises ``ValueError`` naming it, ``where``
+        and the allowed keys."""
+        if solver is None:
+            base = {}
+        elif isinstance(solver, cls):
+            base = solver.to_dict()
+        elif hasattr(solver, "keys"):
+            base = dict(solver)
+        else:
+            raise TypeError(f"{where} = {solver!r}: expected SolverOptions, a mapping of its fields, or None")
+        base.update({k: v for k, v in overrides.items() if v is not None})
+        unknown = sorted(set(base) - set(cls.__dataclass_fields__))
+        if unknown:
+            raise ValueError(f"{where}: unknown key(s) {unknown}; allowed {sorted(cls.__dataclass_fields__)}")
+        return cls(**base)
 
 
 class History:

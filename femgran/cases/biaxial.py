@@ -89,9 +89,9 @@ def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = No
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float | None = None,
+            linear_solver: str | None = None, write_every: int = 1, plots: bool = True, tol: float | None = None,
             weak_zone: float = 0.0, weak_zone_height: float = 0.25,
-            platens: str = "smooth"):
+            platens: str = "smooth", solver=None):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     Parameters
@@ -105,8 +105,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
         needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
     platens : "smooth" (the default: the end faces slide freely) or "rough" (no lateral displacement
         of the end faces).
-    tol : relative residual tolerance of the Newton iterations; None: the solver's
-        (:class:`femgran.solver.SolverOptions`, 1e-8).
+    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
+        ``tol`` (relative residual tolerance) and ``linear_solver`` replace those fields when given.
 
     Returns
     -------
@@ -159,10 +159,8 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
                Dirichlet(d.vector_dofs(top, [0]), 0.0)]
     f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
     out_dir = run_folder(out)
-    solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(linear_solver, tol=tol), log=newton_log(out_dir))
-    xq = d.quadrature_points()
-    w = d.dx.ravel()
+    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
+                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
     rx, lx = d.vector_dofs(right, [0]), d.vector_dofs(left, [0])
 
@@ -179,15 +177,36 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
               "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
               "weak_zone": weak, "weak_zone_height": float(weak_zone_height), "volumetric": volumetric,
-              "linear_solver": linear_solver, "tol": solver.options.tol, "material": material_record(mat),
+              "solver": newton.options.to_dict(), "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat), "platens": platens}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="biaxial", every=write_every)
-    sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
+    if len(sol.history) > 1:
+        sol.extra.update(_peak_and_band(sol, snaps, d, p0, W, H, imp))
+    else:  # no converged step: nothing to measure
+        nan = float("nan")
+        sol.extra.update(band_angle_deg=nan, localised=False, peak_friction_deg=nan, peak_dilatancy_deg=nan,
+                         peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
+    sol.extra["params"] = params
+    if out_dir is not None:
+        from femgran.output import write_parameters
+
+        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
+                                                    ("band_angle_deg", "localised", "peak_friction_deg",
+                                                     "peak_dilatancy_deg", "peak_q_kPa", "reference_angles_deg")})
+        if plots:
+            _plots(sol, out_dir)
+    return sol
+
+
+def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> dict:
+    """Peak friction and dilatancy from the global response, and the band of the strain increment after the peak."""
     h = sol.history
+    xq = d.quadrature_points()
     q, e_a, e_l = h["q_kPa"], h["eps_a"], h["eps_lateral"]
     # peak friction from the largest deviator; the dilatancy and the start of the band's strain
     # increment at the first step within 1 % of it (on a plateau, where the dilatancy is still the peak's)
@@ -204,18 +223,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     h_el = float(d.element_size().max())
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
     angle, localised = band_angle(xq, gamma, width=max(2 * h_el, W / 10), exclude=exclude)
-    sol.extra.update(params=params, band_angle_deg=angle, localised=localised, peak_friction_deg=phi,
-                     peak_dilatancy_deg=psi, peak_q_kPa=q_max,
-                     reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
-    if out_dir is not None:
-        from femgran.output import write_parameters
-
-        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
-                                                    ("band_angle_deg", "localised", "peak_friction_deg",
-                                                     "peak_dilatancy_deg", "peak_q_kPa", "reference_angles_deg")})
-        if plots:
-            _plots(sol, out_dir)
-    return sol
+    return dict(band_angle_deg=angle, localised=localised, peak_friction_deg=phi, peak_dilatancy_deg=psi,
+                peak_q_kPa=q_max,
+                reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
 
 
 def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):

@@ -19,6 +19,10 @@ Format::
     width_m = 1.0
     alpha_deg = 30.0
 
+    [solver]                      # optional: fields of femgran.solver.SolverOptions
+    tol = 1e-8
+    max_iter = 25
+
 Every key is checked before any computation: an unknown key raises ``ValueError`` naming it and the
 allowed keys.
 """
@@ -38,7 +42,7 @@ LAWS = {
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "linear_elastic": ("E_kPa", "nu"),
 }
-_TOP = ("case", "out", "material", "parameters")
+_TOP = ("case", "out", "material", "parameters", "solver")
 
 
 def _case_function(name):
@@ -51,6 +55,13 @@ def _check_keys(where: str, given, allowed) -> None:
     unknown = sorted(set(given) - set(allowed))
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {unknown}; allowed {sorted(allowed)}")
+
+
+def _table(doc: dict, name: str) -> dict:
+    value = doc[name]
+    if not isinstance(value, dict):
+        raise ValueError(f"{name} = {value!r}: must be a table [{name}]")
+    return value
 
 
 def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base: Path = Path(".")):
@@ -99,7 +110,7 @@ def load_case(path) -> tuple[str, dict]:
         raise ValueError(f"case file {p.name}: case = {case!r}; allowed {list(CASES)}")
     func = _case_function(case)
     params = dict(doc.get("parameters", {}))
-    allowed = [k for k in inspect.signature(func).parameters if k not in ("material",)]
+    allowed = [k for k in inspect.signature(func).parameters if k not in ("material", "solver")]
     _check_keys(f"[parameters] of case {case!r}", params, allowed)
     if "mesh" in params:
         mp = Path(params["mesh"])
@@ -112,6 +123,10 @@ def load_case(path) -> tuple[str, dict]:
                                         base=p.parent)
     if "out" in doc and "out" in allowed:
         kwargs["out"] = doc["out"]
+    if "solver" in doc:
+        from femgran.cases.common import solver_options
+
+        kwargs["solver"] = solver_options(_table(doc, "solver"), where=f"[solver] of {p.name}")
     return case, kwargs
 
 

@@ -70,14 +70,28 @@ def _common(p, default_out):
     p.add_argument("--alpha", type=float, nargs="+", default=[0.0], help="deposition angle(s) [deg]")
     p.add_argument("--steps", type=int, default=None, help="nominal number of load steps")
     p.add_argument("--order", type=int, choices=[1, 2], default=None, help="element order")
-    p.add_argument("--linear-solver", default="auto", choices=["auto", "superlu", "amg-gmres", "ilu-gmres"],
+    s = p.add_argument_group("solver (femgran.solver.SolverOptions; default: its values)")
+    s.add_argument("--tol", type=float, default=None, help="relative residual tolerance of the Newton iterations")
+    s.add_argument("--max-iter", type=int, default=None, help="Newton iterations per attempt of a step")
+    s.add_argument("--max-cuts", type=int, default=None, help="successive step cut-backs before a clean stop")
+    s.add_argument("--line-search", type=int, default=None, metavar="K",
+                   help="shortest line-search step 2**-K of the Newton step (0: plain Newton)")
+    s.add_argument("--predictor", choices=["extrapolate", "tangent", "none"], default=None,
+                   help="first guess of each step's displacements")
+    s.add_argument("--linear-solver", default=None, choices=["auto", "superlu", "amg-gmres", "ilu-gmres"],
                    help="auto: SuperLU for small and plane-strain problems, AMG-GMRES for large 3D ones")
     p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+_SOLVER_FLAGS = ("tol", "max_iter", "max_cuts", "line_search", "predictor", "linear_solver")
+
+
 def _kw(args, **extra):
-    kw = {"linear_solver": args.linear_solver, "progress": not args.no_progress}
+    from femgran.cases.common import solver_options
+
+    given = {k: getattr(args, k) for k in _SOLVER_FLAGS if getattr(args, k) is not None}
+    kw = {"solver": solver_options(given), "progress": not args.no_progress}
     if args.steps is not None:
         kw["steps"] = args.steps
     if args.order is not None:

@@ -78,13 +78,16 @@ def run_folder(out) -> Path | None:
     return p
 
 
-def solver_options(linear_solver: str = "auto", tol: float | None = None, **kw):
-    """SolverOptions with the case's choices; ``tol`` None keeps the solver's default."""
+def solver_options(solver=None, *, linear_solver: str | None = None, tol: float | None = None,
+                   where: str = "solver"):
+    """The SolverOptions of a case: ``solver`` (a SolverOptions, a mapping of its fields, or None: the
+    solver's defaults) with the shorthands ``linear_solver`` and ``tol`` applied on top when given.
+    Every case, the command line and the ``[solver]`` table of a case file go through here."""
     from femgran.solver import SolverOptions
 
     if tol is not None:
-        kw["tol"] = check_positive("tol", tol)
-    return SolverOptions(linear_solver=linear_solver, **kw)
+        tol = check_positive("tol", tol)
+    return SolverOptions.resolve(solver, where=where, linear_solver=linear_solver, tol=tol)
 
 
 def newton_log(out_dir):

@@ -25,7 +25,7 @@ _PATHS = ("triaxial",)
 
 
 def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
-            axial_strain: float = 0.01, steps: int = 50, tol: float = 1e-10):
+            axial_strain: float = 0.01, steps: int = 50, tol: float | None = None, solver=None):
     """Drained triaxial compression of one hexahedral element.
 
     Parameters
@@ -35,6 +35,8 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
     path : "triaxial" (the only homogeneous path implemented through the FE solver).
     p0_kPa : cell pressure [kPa], > 0; alpha_deg : deposition angle from z [deg];
     axial_strain : final axial strain (compression +) [-]; steps : equal strain steps (no regrowth).
+    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
+        ``tol`` replaces its tolerance when given.
 
     Returns
     -------
@@ -60,8 +62,8 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
            Dirichlet(d.vector_dofs(nodes_near(d, (1, 0, 0)), [1]), 0.0)]
     lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
     f_cell = d.pressure_force(lateral, p0)
-    solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(tol=tol))
+    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
+                          options=solver_options(solver, tol=tol))
 
     def observe(s):
         sig = np.average(s.points.stress, axis=0, weights=d.dx.ravel())
@@ -69,5 +71,5 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
         return {"eps_a": -eps[2, 2], "eps_v": -np.trace(eps), "q_kPa": 0.5 * (sig[0, 0] + sig[1, 1]) - sig[2, 2],
                 "p_kPa": -np.trace(sig) / 3.0, "gamma_xz": 2 * eps[0, 2], "gamma_yz": 2 * eps[1, 2]}
 
-    sol = solver.run(steps, observers=[observe], fixed_steps=True)
+    sol = newton.run(steps, observers=[observe], fixed_steps=True)
     return sol

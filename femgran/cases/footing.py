@@ -70,7 +70,8 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
             depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
-            linear_solver: str = "auto", write_every: int = 1, plots: bool = True, tol: float | None = None):
+            linear_solver: str | None = None, write_every: int = 1, plots: bool = True, tol: float | None = None,
+            solver=None):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
     Parameters
@@ -85,8 +86,9 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
     volumetric : "bbar" (default: projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking)
         or "standard" (see :class:`femgran.assembly.Discretisation`).
-    tol : relative residual tolerance of the Newton iterations (out-of-balance force / reaction); None:
-        the solver's (:class:`femgran.solver.SolverOptions`, 1e-8).
+    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
+        ``tol`` (relative residual tolerance, out-of-balance force / reaction) and ``linear_solver``
+        replace the corresponding fields when given.
 
     Returns
     -------
@@ -133,8 +135,8 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     sigma0[:, 1, 1] = sv
     sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
     out_dir = run_folder(out)
-    solver = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
-                          options=solver_options(linear_solver, tol=tol), log=newton_log(out_dir))
+    newton = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
+                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     fy_dofs = bcs[2].dofs
 
     def observe(s):
@@ -146,15 +148,15 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
               "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
-              "order": int(order), "volumetric": d.volumetric, "linear_solver": linear_solver,
-              "tol": solver.options.tol, "material": material_record(mat),
+              "order": int(order), "volumetric": d.volumetric, "solver": newton.options.to_dict(),
+              "material": material_record(mat),
               "ndofs": d.ndofs, "vertical_axis": "y (up)"}
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
-    sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
     sol.extra.update(params=params, **_capacity(sol.history, B))
     if out_dir is not None:
         from femgran.output import write_parameters

@@ -49,9 +49,9 @@ def _weighted_cv(values, weights):
 
 def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
              axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
-             out=None, progress: bool = False, linear_solver: str = "auto", write_every: int = 1,
+             out=None, progress: bool = False, linear_solver: str | None = None, write_every: int = 1,
              plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
-             interface_thickness_m: float = 0.001):
+             interface_thickness_m: float = 0.001, tol: float | None = None, solver=None):
     """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
 
     Parameters
@@ -67,7 +67,9 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
         of a mesh file meshio reads (must fill the box [0, 0.05]^2 x [0, 0.1] m).
     order : 1 (linear) or 2 (quadratic) elements.
     volumetric : "standard" or "bbar" (hexahedra only; see :class:`femgran.assembly.Discretisation`).
-    out : run folder (None: no files). linear_solver : see :data:`femgran.solver.LINEAR_SOLVERS`.
+    out : run folder (None: no files).
+    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
+        ``tol`` and ``linear_solver`` (:data:`femgran.solver.LINEAR_SOLVERS`) replace those fields when given.
 
     Returns
     -------
@@ -123,8 +125,8 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
     f_cell = d.pressure_force(lateral, p0)
     out_dir = run_folder(out)
-    solver = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(linear_solver), log=newton_log(out_dir))
+    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
+                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     area = WIDTH * WIDTH
     top_x, bot_x = d.vector_dofs(top, [0]), d.vector_dofs(bot, [0])
     w = d.dx.ravel()
@@ -146,7 +148,7 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     writer = None
     params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
               "axial_strain": ea, "steps": int(steps), "mesh": str(mesh) if mesh else f"box {n}x{n}x{2 * n} hex",
-              "order": int(order), "linear_solver": linear_solver, "material": material_record(mat),
+              "order": int(order), "solver": newton.options.to_dict(), "material": material_record(mat),
               "friction": float(friction) if platens == "frictional" else None,
               "interface_thickness_m": float(interface_thickness_m) if platens == "frictional" else None,
               "ndofs": d.ndofs}
@@ -155,7 +157,7 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
 
         write_parameters(out_dir / "parameters.json", params)
         writer = SeriesWriter(out_dir, d, name="triaxial", every=write_every)
-    sol = solver.run(steps, writer=writer, progress=progress, observers=[observe])
+    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
     sol.extra.update(params=params, peak_q_kPa=float(np.nanmax(sol.history["q_kPa"])))
     if out_dir is not None and plots:
         _plots(sol, out_dir)
