@@ -48,7 +48,7 @@ def main(argv=None):
     from skfem.models.elasticity import lame_parameters, linear_elasticity
 
     from femgran.assembly import Discretisation
-    from femgran.cases.common import make_material
+    from material.factory import make_material
     from femgran.mesh import box
     from femgran.solver import Dirichlet, LinearSolver, NewtonSolver, SolverOptions
 
@@ -58,7 +58,7 @@ def main(argv=None):
     print(f"mesh: {d.nelems} hexahedra, {d.n_points} Gauss points, {d.ndofs} DOFs; numba threads {numba.get_num_threads()}")
     print(f"discretisation (basis data, DOF maps): {t_disc:.2f} s")
 
-    mat = make_material(None, args.alpha, plane_strain=False)
+    mat = make_material(None, alpha_deg=args.alpha)
     b = mesh.boundaries
     bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
     bcs = [Dirichlet(d.vector_dofs(bot), 0.0), Dirichlet(d.vector_dofs(top, [2]), -0.001, name="top"),

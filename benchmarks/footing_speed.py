@@ -26,17 +26,17 @@ import numpy as np
 
 def _material(name: str, E: float, stabilisation: float):
     from material import CPAModel, DruckerPrager, load_preset
-    from femgran.cases.common import axes_plane_strain
+    from material.factory import plane_strain_axes
 
     if name == "drucker-prager":
         return DruckerPrager(E, 0.3, cohesion_kPa=0.0, friction_deg=30.0)
     if name == "cpa-isotropic":
         p = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
                                                A=1e-5, E=E)
-        return CPAModel(p, axes=axes_plane_strain(0.0))
+        return CPAModel(p, axes=plane_strain_axes(0.0))
     p = load_preset("ottawa_c109").replace(E=E)
     mu = stabilisation if name == "cpa-thesis-stabilised" else 0.0
-    return CPAModel(p, axes=axes_plane_strain(0.0), stabilisation=mu)
+    return CPAModel(p, axes=plane_strain_axes(0.0), stabilisation=mu)
 
 
 SOILS = ("drucker-prager", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised")

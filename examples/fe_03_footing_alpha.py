@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from femgran.cases import footing
-from femgran.cases.common import make_material
+from material.factory import make_material
 
 
 def _plot(out: Path, sols: dict) -> None:
@@ -63,7 +63,7 @@ def main(argv=None) -> dict:
     with open(out / "summary.csv", "w") as f:
         f.write("alpha_deg,pressure_at_5pct_kPa,pressure_at_10pct_kPa,steps,newton_iterations_per_step,completed\n")
         for a in alphas:
-            mat = make_material(None, a, plane_strain=True, stabilisation=args.stabilisation)
+            mat = make_material(None, alpha_deg=a, plane_strain=True, stabilisation=args.stabilisation)
             sol = footing(mat, 1.0, 18.0, args.surcharge, True, a, settlement_m=0.1, steps=steps, resolution=res,
                           out=out / f"alpha_{a:g}", plots=False)
             h = sol.history

@@ -38,9 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from femgran.cases import biaxial
-from femgran.cases.common import axes_plane_strain
 from femgran.solver import History
 from material import CPAModel, load_preset
+from material.factory import plane_strain_axes
 
 VARIANTS = ("regularised", "unregularised")
 POST_PEAK_STRAINS = (0.035, 0.045, 0.06)  # axial strains at which the post-peak q of the meshes is compared
@@ -92,7 +92,7 @@ def _run(n: int, variant: str, args, out: Path):
     """One run in this process: prints its one-line summary, returns the solution."""
     params = load_preset("ottawa_c109").replace(E=args.youngs_modulus, zeta=1.05,
                                                 softening_slip=args.softening_slip, residual_ratio=0.65)
-    model = CPAModel(params, axes=axes_plane_strain(0.0), regularise=variant == "regularised",
+    model = CPAModel(params, axes=plane_strain_axes(0.0), regularise=variant == "regularised",
                      stabilisation=args.stabilisation)
     tag = _tag(n, variant)
     sol = biaxial(model, 100.0, 0.0, axial_strain=args.axial_strain, steps=args.steps, resolution=n,

@@ -40,29 +40,20 @@ def to_quadrature(batch: np.ndarray, nelems: int, nqp: int) -> np.ndarray:
     return a.reshape(a.shape[:-1] + (nelems, nqp))
 
 
-def initial_state_of(material, n_points: int, stress, element_size=None):
-    """``material.initial_state(n, stress=...)``, with ``element_size`` (N,) [m] passed only to materials
-    whose ``initial_state`` takes that keyword (regularised softening, e.g. :class:`material.CPAModel`)."""
-    import inspect
-
-    if element_size is not None and "element_size" in inspect.signature(material.initial_state).parameters:
-        return material.initial_state(n_points, stress=stress, element_size=element_size)
-    return material.initial_state(n_points, stress=stress)
-
-
 class PointState:
     """Stress and material state of all quadrature points, at the start (committed) and end (trial) of a step.
 
     Parameters
     ----------
-    material : object with ``initial_state(n, stress=...)`` and ``update(d_strain, stress, state)``
+    material : a material (:class:`material.base.Material`: ``initial_state(n, stress=, element_size=)``
+        and ``update(d_strain, stress, state)``)
     n_points : int
         Number of quadrature points N = nelems * nqp.
     initial_stress : None, (3, 3) or (N, 3, 3)
         In-situ stress [kPa], tension positive.
     element_size : None or (N,) [m]
-        Size of each point's element, passed to materials whose ``initial_state`` takes an
-        ``element_size`` keyword (regularised softening, e.g. :class:`material.CPAModel`).
+        Size of each point's element, passed to the material (regularised softening, e.g.
+        :class:`material.CPAModel`, uses it; laws without a length scale ignore it).
     """
 
     def __init__(self, material, n_points: int, initial_stress=None, element_size=None):
@@ -71,7 +62,7 @@ class PointState:
         self.material = material
         self.n_points = int(n_points)
         self.stress = as_stress_batch(initial_stress, self.n_points, "initial_stress")
-        self.state = initial_state_of(material, self.n_points, self.stress, element_size)
+        self.state = material.initial_state(self.n_points, stress=self.stress, element_size=element_size)
         self.trial_stress = self.stress.copy()
         self.trial_state = copy_state(self.state)
         self.tangent = None

@@ -42,6 +42,7 @@ Decisions not fixed by the thesis (``docs/cpa_law.md`` gives the reasons and the
 
 from __future__ import annotations
 
+import copy
 import os
 import time
 from dataclasses import dataclass
@@ -165,6 +166,22 @@ class CPAModel:
                         float(p.kappa_instability), float(p.residual_ratio), float(p.compaction_stress),
                         float(p.bulk_modulus),
                         self._comp, self._stiff)
+
+    def replace(self, *, params: CPAParameters | None = None, axes=None, **options) -> "CPAModel":
+        """A new law with the same rule, axes and options as this one except those given (``params``,
+        ``axes``, or any keyword of the constructor); this law is unchanged."""
+        kw = dict(rule=self.rule, maxit=self.options.maxit, max_halvings=self.options.max_halvings,
+                  tol=self.options.tol, stabilisation=self.options.stabilisation, replay_dir=self.replay_dir,
+                  threads=self.threads, regularise=self.regularise)
+        kw.update(options)
+        return CPAModel(self.params if params is None else params, axes=self.axes if axes is None else axes, **kw)
+
+    def with_replay_dir(self, path) -> "CPAModel":
+        """This law writing the inputs of its failing points to ``path`` (a copy: this object keeps its folder)."""
+        new = copy.copy(self)
+        new.replay_dir = None if path is None else Path(path)
+        new.last_failure = None
+        return new
 
     @property
     def n_planes(self) -> int:

@@ -603,35 +603,11 @@ def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):
 
 # ---------------------------------------------------------------------------- model construction
 def _make_model(model_or_params, alpha_deg: float, rule: str | None):
-    """A material object from a law, a CPAParameters or a preset name; also returns the parameters (or None)."""
-    from material.parameters import CPAParameters, load_preset
+    """The material (:func:`material.factory.make_material`, 3D frame) and its parameters (or None)."""
+    from material.factory import make_material
 
-    if isinstance(model_or_params, str):
-        model_or_params = load_preset(model_or_params)
-    if isinstance(model_or_params, CPAParameters):
-        from material.anisotropy import axes_from_alpha
-        from material.cpa import CPAModel  # lazy: the CPA kernel is the heavy import
-
-        kwargs = {} if rule is None else {"rule": rule}
-        return CPAModel(model_or_params, axes=axes_from_alpha(alpha_deg), **kwargs), model_or_params
-    if not (hasattr(model_or_params, "update") and hasattr(model_or_params, "initial_state")):
-        raise ValueError(
-            f"model_or_params: expected a material object (initial_state/update), CPAParameters or a "
-            f"preset name, got {type(model_or_params).__name__}"
-        )
-    if rule is not None:
-        raise ValueError("rule: only used when the model is built from CPAParameters; the given model has its own rule")
-    axes = getattr(model_or_params, "axes", None)
-    if axes is not None:
-        from material.anisotropy import axes_from_alpha
-
-        if not np.allclose(np.asarray(axes)[:, 1], axes_from_alpha(alpha_deg)[:, 1], atol=1e-9):
-            raise ValueError(
-                f"alpha_deg = {alpha_deg!r} does not match the model's material axes (e2 = "
-                f"{np.round(np.asarray(axes)[:, 1], 6).tolist()}); build the model with "
-                f"axes=axes_from_alpha({alpha_deg!r}) or pass the CPAParameters instead of a model"
-            )
-    return model_or_params, getattr(model_or_params, "params", None)
+    model = make_material(model_or_params, alpha_deg=alpha_deg, rule=rule)
+    return model, getattr(model, "params", None)
 
 
 def _check_positive(name: str, value: float, allow_zero: bool = False) -> float:
@@ -770,7 +746,7 @@ def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
       i.e. eps_xx = eps_yy = eps_xy = 0 (rigid box walls / ring) and sigma_yz = 0 (eps_yz free, non-zero
       only for asymmetric fabrics); sigma_xx, sigma_yy evolve. With this choice the peak ratio
       tau/sigma_n approaches eta_f of the planes parallel to the layer, i.e. the direct-shear friction
-      coefficient eta_f(alpha) of MODEL.md.
+      coefficient eta_f(alpha) (``docs/model.md``, "Inherent and induced anisotropy").
     * ``lateral="stress"``: sigma_xx, sigma_yy held at their initial values and sigma_xy = sigma_yz = 0
       (all lateral strains free). The Mohr circle then grows about a fixed centre and the peak
       tau/sigma_n stays well below eta_f (about 0.6 for ottawa_c109).

@@ -54,8 +54,9 @@ class LinearElastic:
     def __repr__(self) -> str:
         return f"LinearElastic(E_kPa={self.E:g}, nu={self.nu:g})"
 
-    def initial_state(self, n_points: int, stress=None) -> State:
-        """State of ``n_points`` points; ``stress`` is accepted for interface symmetry (not stored)."""
+    def initial_state(self, n_points: int, stress=None, *, element_size=None) -> State:
+        """State of ``n_points`` points; ``stress`` and ``element_size`` are part of the material protocol
+        (validated, not stored: elasticity has no length scale)."""
         as_stress_batch(stress, n_points)
         n = int(n_points)
         return {

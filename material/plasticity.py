@@ -57,11 +57,12 @@ class _Base:
         self.K = self.E / (3.0 * (1.0 - 2.0 * self.nu))
         self.stiffness = 3.0 * self.K * (_II / 3.0) + 2.0 * self.G * _IDEV
 
-    def initial_state(self, n_points: int, stress=None) -> State:
+    def initial_state(self, n_points: int, stress=None, *, element_size=None) -> State:
         """State of ``n_points`` points: zero strain and plastic strain.
 
         ``stress`` (3, 3) or (N, 3, 3), tension +, is validated but not stored: the stress is passed
-        to :meth:`update`; it is assumed admissible (inside the yield surface).
+        to :meth:`update`; it is assumed admissible (inside the yield surface). ``element_size`` is part
+        of the material protocol; a law without a length scale ignores it.
         """
         as_stress_batch(stress, n_points)
         n = int(n_points)

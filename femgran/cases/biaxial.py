@@ -38,9 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
                                   nodes_near, run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
+from material.factory import make_material
 
 __all__ = ["biaxial", "band_angle"]
 
@@ -137,7 +138,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     # the bump moved the left face: name it by the original x = 0 nodes
     left_nodes = np.flatnonzero(np.abs(m.p[0] - imp * W * np.exp(-(((m.p[1] - 0.5 * H) / (0.1 * H)) ** 2))) < 1e-12 * W)
     left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
-    mat = make_material(material, alpha_deg, plane_strain=True)
+    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=True)
     d = Discretisation(m, order, volumetric)
     weak = check_positive("weak_zone", weak_zone, allow_zero=True)
     if weak > 0:
@@ -159,6 +160,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
                Dirichlet(d.vector_dofs(top, [0]), 0.0)]
     f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
     out_dir = run_folder(out)
+    mat = keep_failed_points(mat, out_dir)
     newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
                           options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
@@ -172,7 +174,6 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
         snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
         return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
 
-    keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
               "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
@@ -230,7 +231,7 @@ def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> 
 
 def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
     """A Composite: ``mat`` everywhere but in the elements near (0, y0), where eta0 is (1 - weak) x."""
-    from femgran.composite import Composite
+    from material.composite import Composite
     from material import CPAModel
 
     if not isinstance(mat, CPAModel):
@@ -241,8 +242,7 @@ def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
     centres = mesh.p[:, mesh.t].mean(axis=1)
     h = d.element_size()[:: d.nqp]
     inside = np.hypot(centres[0], centres[1] - y0) < 0.1 * W + 0.5 * h
-    weak_mat = CPAModel(mat.params.replace(eta0=mat.params.eta0 * (1 - weak)), rule=mat.rule, axes=mat.axes,
-                        regularise=mat.regularise, replay_dir=mat.replay_dir)
+    weak_mat = mat.replace(params=mat.params.replace(eta0=mat.params.eta0 * (1 - weak)))
     return Composite([mat, weak_mat], np.repeat(inside.astype(np.int64), d.nqp))
 
 

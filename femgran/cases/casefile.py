@@ -76,7 +76,7 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
         raise ValueError(f"[material] law = {law!r}: allowed {sorted(LAWS)}")
     _check_keys(f"[material] (law {law!r})", spec, LAWS[law])
     if law == "cpa":
-        from femgran.cases.common import make_material
+        from material.factory import make_material
 
         if "parameters" in spec and "preset" in spec:
             raise ValueError("[material]: give either preset or parameters, not both")
@@ -86,8 +86,8 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
             params = mlib.load_preset(spec.get("preset", "ottawa_c109"))
         if spec.get("set"):
             params = params.replace(**spec["set"])
-        return make_material(params, alpha_deg, plane_strain=plane_strain, rule=spec.get("rule", "bazant-oh-33"),
-                             stabilisation=float(spec.get("stabilisation", 0.0)))
+        return make_material(params, alpha_deg=alpha_deg, plane_strain=plane_strain, rule=spec.get("rule"),
+                             stabilisation=spec.get("stabilisation"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
     try:
         return cls(**spec)

@@ -1,4 +1,7 @@
-"""Shared plumbing of the cases: material construction, run folders, parameter records."""
+"""Shared plumbing of the cases: run folders, parameter records, solver options.
+
+The material of a case comes from :func:`material.factory.make_material`, as for the element drivers.
+"""
 
 from __future__ import annotations
 
@@ -6,50 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["make_material", "axes_plane_strain", "run_folder", "material_record", "solver_options"]
+__all__ = ["run_folder", "material_record", "solver_options", "newton_log", "check_positive", "nodes_near"]
 
 
-def axes_plane_strain(alpha_deg: float) -> np.ndarray:
-    """Material axes of a plane-strain case whose vertical is global y.
-
-    e2 (deposition axis) = (sin a, cos a, 0) at ``alpha_deg`` from y in the x-y plane,
-    e1 = (cos a, -sin a, 0), e3 = z (out of plane); columns e1, e2, e3, right-handed.
-    """
-    a = np.radians(float(alpha_deg))
-    if not np.isfinite(a):
-        raise ValueError(f"alpha_deg = {alpha_deg!r}: must be finite")
-    e1 = np.array([np.cos(a), -np.sin(a), 0.0])
-    e2 = np.array([np.sin(a), np.cos(a), 0.0])
-    return np.column_stack([e1, e2, np.cross(e1, e2)])
-
-
-def make_material(material, alpha_deg: float, *, plane_strain: bool, rule: str = "bazant-oh-33",
-                  stabilisation: float = 0.0):
-    """The material of a case.
-
-    ``None``: the default CPA law ``CPAModel(load_preset("ottawa_c109"))``; a preset name or
-    CPAParameters: a CPAModel; in both cases with material axes for ``alpha_deg`` (3D: z vertical,
-    :func:`material.anisotropy.axes_from_alpha`; plane strain: y vertical, :func:`axes_plane_strain`)
-    and the step ``stabilisation`` of :class:`material.CPAModel`. A material object is used as given
-    (its own axes and options; ``alpha_deg`` is only recorded).
-    """
-    from material import CPAModel, CPAParameters, load_preset
-    from material.anisotropy import axes_from_alpha
-
-    if material is None or isinstance(material, (str, CPAParameters)):
-        params = load_preset("ottawa_c109" if material is None else material) if not isinstance(material, CPAParameters) else material
-        axes = axes_plane_strain(alpha_deg) if plane_strain else axes_from_alpha(alpha_deg)
-        return CPAModel(params, rule=rule, axes=axes, stabilisation=stabilisation)
-    return material
-
-
-def keep_failed_points(material, out_dir) -> None:
-    """Let a CPA material write the inputs of points that fail to integrate to ``out_dir/failed_points``
-    (one replay file per failure, :func:`material.cpa.replay`), unless it already has a replay folder."""
-    if out_dir is not None and hasattr(material, "replay_dir") and material.replay_dir is None:
-        from pathlib import Path
-
-        material.replay_dir = Path(out_dir) / "failed_points"
+def keep_failed_points(material, out_dir):
+    """The material a run uses: when it can keep the inputs of points that fail to integrate and has no
+    folder of its own, a copy writing them to ``out_dir/failed_points`` (one replay file per failure,
+    :func:`material.cpa.replay`); otherwise the material itself. The user's object is never changed."""
+    if out_dir is None or getattr(material, "replay_dir", None) is not None or not hasattr(material, "with_replay_dir"):
+        return material
+    return material.with_replay_dir(Path(out_dir) / "failed_points")
 
 
 def material_record(material) -> dict:

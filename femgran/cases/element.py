@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from femgran.cases.common import check_positive, make_material, nodes_near, solver_options
+from femgran.cases.common import check_positive, nodes_near, solver_options
 from femgran.solver import Dirichlet, NewtonSolver
+from material.factory import make_material
 
 __all__ = ["element"]
 
@@ -51,7 +52,7 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
         raise ValueError(f"path = {path!r}: allowed {_PATHS}")
     p0 = check_positive("p0_kPa", p0_kPa)
     ea = check_positive("axial_strain", axial_strain)
-    mat = make_material(material, alpha_deg, plane_strain=False)
+    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=False)
     mesh = box(1.0, 1.0, 1.0, 1, 1, 1)
     d = Discretisation(mesh, 1)
     b = mesh.boundaries

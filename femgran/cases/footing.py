@@ -8,7 +8,7 @@ their u_x (no slip), ``rough=False`` leaves it free (smooth footing).
 Self weight: body force (0, -gamma) and the geostatic in-situ stress sigma_yy = -(gamma |y| + q_s),
 sigma_xx = sigma_zz = K0 sigma_yy (tension +), with the surcharge q_s applied as a pressure on the
 surface beside the footing (and in the in-situ stress under it). Material axes (CPA): the deposition axis
-e2 is at ``alpha_deg`` from the vertical y in the x-y plane (:func:`femgran.cases.common.axes_plane_strain`).
+e2 is at ``alpha_deg`` from the vertical y in the x-y plane (:func:`material.factory.plane_strain_axes`).
 
 History columns: ``settlement_m``, ``pressure_kPa`` (mean footing pressure = vertical platen force / B,
 compression +). ``bearing_capacity_kPa``: the largest mean pressure reached (the limit load when the
@@ -27,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
                                   run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
+from material.factory import make_material
 
 __all__ = ["footing", "footing_mesh", "prandtl_pressure"]
 
@@ -108,7 +109,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         raise ValueError(f"mesh {mesh!r}: the footing is plane strain; a 2D mesh is required")
     if abs(m.p[1].max()) > 1e-9 * B or m.p[0].min() >= -B / 2 or m.p[0].max() <= B / 2:
         raise ValueError(f"mesh {mesh!r}: the surface must be y = 0 and the domain must contain |x| <= B/2")
-    mat = make_material(material, alpha_deg, plane_strain=True)
+    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=True)
     d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshQuad1" else "standard")
     b = m.boundaries
     eps_x = 1e-9 * B
@@ -135,6 +136,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     sigma0[:, 1, 1] = sv
     sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
     out_dir = run_folder(out)
+    mat = keep_failed_points(mat, out_dir)
     newton = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
                           options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     fy_dofs = bcs[2].dofs
@@ -143,7 +145,6 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
         r = d.internal_force(s.points.stress) - s.external(s.t)
         return {"settlement_m": -float(np.mean(s.u[fy_dofs])), "pressure_kPa": -float(np.sum(r[fy_dofs])) / B}
 
-    keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
               "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,

@@ -31,9 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, make_material, material_record, newton_log,
+from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
                                   nodes_near, run_folder, solver_options)
 from femgran.solver import Dirichlet, NewtonSolver
+from material.factory import make_material
 
 __all__ = ["triaxial", "PLATENS"]
 
@@ -109,7 +110,7 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
         if m.dim() != 3 or not (np.allclose(lo, 0, atol=1e-6) and np.allclose(hi, [WIDTH, WIDTH, HEIGHT], atol=1e-6)):
             raise ValueError(f"mesh {mesh!r}: must be 3D and fill [0, {WIDTH}] x [0, {WIDTH}] x [0, {HEIGHT}] m; "
                              f"got bounds {lo} .. {hi}")
-    mat = make_material(material, alpha_deg, plane_strain=False)
+    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=False)
     d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshHex1" else "standard")
     if platens == "frictional":
         mat = _with_interface_layers(mat, d, mu, ti)
@@ -125,6 +126,7 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
     f_cell = d.pressure_force(lateral, p0)
     out_dir = run_folder(out)
+    mat = keep_failed_points(mat, out_dir)
     newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
                           options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
     area = WIDTH * WIDTH
@@ -144,7 +146,6 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
                 "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
                 "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
-    keep_failed_points(mat, out_dir)
     writer = None
     params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
               "axial_strain": ea, "steps": int(steps), "mesh": str(mesh) if mesh else f"box {n}x{n}x{2 * n} hex",
@@ -168,7 +169,7 @@ def _with_interface_layers(mat, d, mu, ti):
     """Composite material: a frictional Drucker-Prager layer in the elements touching the platens."""
     from material import DruckerPrager
 
-    from femgran.composite import Composite
+    from material.composite import Composite
 
     E = getattr(mat, "E", None) or getattr(getattr(mat, "params", None), "E", None)
     nu = getattr(mat, "nu", None) or getattr(getattr(mat, "params", None), "nu", None)

@@ -244,7 +244,7 @@ def test_bad_case_arguments():
 class _PlaneStressOnly:
     """A law with 2x2 tensors: inconsistent with femgran's 3x3 material interface."""
 
-    def initial_state(self, n, stress=None):
+    def initial_state(self, n, stress=None, *, element_size=None):
         return {"strain": np.zeros((n, 2, 2)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
 
     def update(self, d_strain, stress, state):
@@ -274,13 +274,14 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
 
 def test_weak_zone_makes_a_composite_that_keeps_failed_points(tmp_path):
     from femgran.cases.common import keep_failed_points
-    from femgran.composite import Composite
+    from material.composite import Composite
 
     law = material.CPAModel("ottawa_c109")
     weak = material.CPAModel(law.params.replace(eta0=0.8))
     comp = Composite([law, weak], np.array([0, 1, 1]))
-    keep_failed_points(comp, tmp_path)
-    assert law.replay_dir == weak.replay_dir == comp.replay_dir == tmp_path / "failed_points"
+    kept = keep_failed_points(comp, tmp_path)
+    assert kept.laws[0].replay_dir == kept.laws[1].replay_dir == kept.replay_dir == tmp_path / "failed_points"
+    assert law.replay_dir is weak.replay_dir is comp.replay_dir is None  # the user's objects are unchanged
     sol = biaxial(None, 100.0, axial_strain=0.004, steps=2, resolution=4, weak_zone=0.05, out=tmp_path / "bx",
                   plots=False)
     assert sol.completed and sol.extra["params"]["weak_zone"] == 0.05

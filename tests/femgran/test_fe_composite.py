@@ -5,7 +5,7 @@ import pytest
 
 import material
 from femgran.cases import triaxial
-from femgran.composite import Composite
+from material.composite import Composite
 
 
 def test_composite_dispatches_points_and_keeps_each_state(rng):

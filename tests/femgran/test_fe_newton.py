@@ -130,7 +130,7 @@ class _StepLimited:
     def __init__(self, inner, limit):
         self.inner, self.limit = inner, limit
 
-    def initial_state(self, n, stress=None):
+    def initial_state(self, n, stress=None, *, element_size=None):
         return self.inner.initial_state(n, stress=stress)
 
     def update(self, d_strain, stress, state):
@@ -283,7 +283,7 @@ class _StiffTangent:
     def __init__(self, inner, factor=1.5):
         self.inner, self.factor = inner, factor
 
-    def initial_state(self, n, stress=None):
+    def initial_state(self, n, stress=None, *, element_size=None):
         return self.inner.initial_state(n, stress=stress)
 
     def update(self, d_strain, stress, state):

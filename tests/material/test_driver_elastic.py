@@ -158,7 +158,7 @@ class _Brittle:
         self.inner = LinearElastic(E, NU)
         self.limit = limit
 
-    def initial_state(self, n, stress=None):
+    def initial_state(self, n, stress=None, *, element_size=None):
         return self.inner.initial_state(n, stress)
 
     def update(self, de, s, st):

@@ -11,6 +11,8 @@ without such a key gets zeros there.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from material.base import STATUS_OK, as_stress_batch, check_batch
@@ -53,27 +55,25 @@ class Composite:
         """The replay folder of the first law that keeps one (None if none does)."""
         return next((law.replay_dir for law in self.laws if getattr(law, "replay_dir", None) is not None), None)
 
-    @replay_dir.setter
-    def replay_dir(self, path):
-        for law in self.laws:
-            if hasattr(law, "replay_dir"):
-                law.replay_dir = path
+    def with_replay_dir(self, path) -> "Composite":
+        """A copy whose laws that keep failed points write them to ``path`` (this object and its laws unchanged)."""
+        new = copy.copy(self)
+        new.laws = [law.with_replay_dir(path) if hasattr(law, "with_replay_dir") else law for law in self.laws]
+        return new
 
     def _n(self, n):
         if int(n) != self.assignment.size:
             raise ValueError(f"Composite: {n} points, but the assignment has {self.assignment.size}")
         return int(n)
 
-    def initial_state(self, n_points: int, stress=None, element_size=None):
-        """States of every law on its points; ``element_size`` (N,) reaches the laws that take it."""
-        from femgran.state import initial_state_of
-
+    def initial_state(self, n_points: int, stress=None, *, element_size=None):
+        """States of every law on its points; each law gets the ``element_size`` (N,) of its points."""
         n = self._n(n_points)
         sig = as_stress_batch(stress, n)
         h = None if element_size is None else np.broadcast_to(np.asarray(element_size, float), (n,))
         state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
-            sub = initial_state_of(law, idx.size, sig[idx], None if h is None else h[idx])
+            sub = law.initial_state(idx.size, stress=sig[idx], element_size=None if h is None else h[idx])
             for key, arr in sub.items():
                 full = np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
                 full[idx] = arr

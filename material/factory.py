@@ -1,0 +1,99 @@
+"""One way to turn what a user gives into a material object, for the element drivers, the cases and the CLI.
+
+What may be given (``spec``):
+
+* ``None``: the CPA law with the ``ottawa_c109`` preset;
+* a preset name (``"ottawa_c109"``, see :func:`material.parameters.preset_names`) or the path of a
+  parameter file (``.toml`` / ``.json``, :func:`material.load_parameters`);
+* :class:`material.CPAParameters`;
+* a material object (anything with ``initial_state`` and ``update``), used as it is.
+
+The one rule for the deposition angle: a CPA law built here gets the material axes of ``alpha_deg``
+(default 0); a material object keeps its own axes, and an ``alpha_deg`` given with it must agree with
+them (the deposition axis e2, up to its sign), so the angle recorded next to a result is the angle the
+law used. An object without axes (an isotropic law) accepts any ``alpha_deg``. The CPA options
+``rule`` and ``stabilisation`` apply only to a law built here.
+
+Frames: ``plane_strain=False`` has the vertical along z (e2 = (sin a, 0, cos a),
+:func:`material.anisotropy.axes_from_alpha`), ``plane_strain=True`` along y with z out of plane
+(e2 = (sin a, cos a, 0), :func:`plane_strain_axes`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["make_material", "plane_strain_axes", "deposition_axes"]
+
+DEFAULT_PRESET = "ottawa_c109"
+_PARAMETER_SUFFIXES = (".toml", ".json")
+
+
+def plane_strain_axes(alpha_deg: float) -> np.ndarray:
+    """Material axes of a plane-strain problem whose vertical is global y.
+
+    e2 (deposition axis) = (sin a, cos a, 0) at ``alpha_deg`` from y in the x-y plane,
+    e1 = (cos a, -sin a, 0), e3 = z (out of plane); columns e1, e2, e3, right-handed.
+    """
+    a = np.radians(float(alpha_deg))
+    if not np.isfinite(a):
+        raise ValueError(f"alpha_deg = {alpha_deg!r}: must be finite")
+    e1 = np.array([np.cos(a), -np.sin(a), 0.0])
+    e2 = np.array([np.sin(a), np.cos(a), 0.0])
+    return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+
+def deposition_axes(alpha_deg: float, *, plane_strain: bool = False) -> np.ndarray:
+    """The material axes for ``alpha_deg`` in the 3D frame (z vertical) or the plane-strain frame (y vertical)."""
+    from material.anisotropy import axes_from_alpha
+
+    return plane_strain_axes(alpha_deg) if plane_strain else axes_from_alpha(alpha_deg)
+
+
+def _parameters(spec):
+    from material.parameters import CPAParameters, load_parameters, load_preset
+
+    if spec is None:
+        return load_preset(DEFAULT_PRESET)
+    if isinstance(spec, CPAParameters):
+        return spec
+    if isinstance(spec, Path) or (isinstance(spec, str) and spec.lower().endswith(_PARAMETER_SUFFIXES)):
+        return load_parameters(spec)
+    if isinstance(spec, str):
+        return load_preset(spec)
+    return None
+
+
+def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bool = False,
+                  rule: str | None = None, stabilisation: float | None = None):
+    """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``)."""
+    params = _parameters(spec)
+    if params is not None:
+        from material.cpa import CPAModel  # the CPA kernel is the heavy import
+
+        options = {k: v for k, v in (("rule", rule), ("stabilisation", stabilisation)) if v is not None}
+        axes = deposition_axes(0.0 if alpha_deg is None else alpha_deg, plane_strain=plane_strain)
+        return CPAModel(params, axes=axes, **options)
+    missing = [m for m in ("initial_state", "update") if not callable(getattr(spec, m, None))]
+    if missing:
+        raise ValueError(f"material = {spec!r} ({type(spec).__name__}) lacks the method(s) {missing} of a material "
+                         "object; allowed: None, a preset name, a parameter file (.toml/.json), CPAParameters or an "
+                         "object with initial_state and update")
+    for name, value in (("rule", rule), ("stabilisation", stabilisation)):
+        if value is not None:
+            raise ValueError(f"{name} = {value!r}: applies to a CPA law built from a preset or parameters; the "
+                             f"given {type(spec).__name__} has its own")
+    axes = getattr(spec, "axes", None)
+    if alpha_deg is not None and axes is not None:
+        e2 = np.asarray(axes, dtype=float)[:, 1]
+        expected = deposition_axes(alpha_deg, plane_strain=plane_strain)[:, 1]
+        if abs(float(e2 @ expected)) < 1.0 - 1e-9:
+            frame = "plane strain, y vertical" if plane_strain else "3D, z vertical"
+            raise ValueError(
+                f"alpha_deg = {alpha_deg!r} does not match the material's own axes (e2 = "
+                f"{np.round(e2, 6).tolist()}; alpha_deg = {alpha_deg!r} means e2 = {np.round(expected, 6).tolist()} "
+                f"in this problem's frame, {frame}): build the material with axes for that angle, pass a preset "
+                "or CPAParameters instead of the object, or leave alpha_deg out")
+    return spec
