@@ -195,14 +195,28 @@ def superquadric_glyph(tensor, centre, scale: float, n: int = 120, gamma: float 
     return np.asarray(centre) + local @ frame.T
 
 
+def _offscreen_pyvista():
+    """pyvista for off-screen rendering. Linux without DISPLAY (or with PYVISTA_OFF_SCREEN=true): name
+    VTK's EGL window, else VTK probes X first and prints "bad X server connection" before falling back
+    to EGL/OSMesa itself (it still falls back if EGL fails). A local copy of the set-up in
+    femgran.output._offscreen_pyvista, because dem must not import femgran."""
+    import os
+    import sys
+
+    if sys.platform.startswith("linux") and (
+            not os.environ.get("DISPLAY") or os.environ.get("PYVISTA_OFF_SCREEN", "").lower() == "true"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    return pv
+
+
 def glyph_figure(fabric_rows: dict, path, angles=(0, 15, 30, 45, 60, 90)) -> Path:
     """Fig. 42: glyphs of n^Omega (grey, scaled to 1) over n^e (black, scaled to 1/2) at several alpha_eps.
 
     Both tensors are traceless, so their superquadric glyphs are four-pointed stars with equal arms;
     the axis of the positive eigenvalue is drawn as a line (red: n^Omega, blue: n^e)."""
-    import pyvista as pv
-
-    pv.OFF_SCREEN = True
+    pv = _offscreen_pyvista()
     ae = _unwrap(fabric_rows["alpha_eps_deg"])
     plotter = pv.Plotter(off_screen=True, window_size=(1500, 330))
     plotter.set_background("white")

@@ -19,8 +19,10 @@ Fields (snake_case; units: m, kPa):
 
 from __future__ import annotations
 
+import functools
 import json
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -247,9 +249,9 @@ def plot_field(vtu_path, field: str, path, *, component: int | str | None = None
     ``component``: an index of a multi-component field, or ``"norm"`` (Euclidean norm of the components).
     """
     try:
-        import pyvista as pv
-
-        pv.OFF_SCREEN = True
+        pv = _offscreen_pyvista()
+        if pv is None:
+            return None
         grid = pv.read(str(vtu_path))
         name = field
         values = np.asarray(grid.point_data[field])
@@ -269,3 +271,48 @@ def plot_field(vtu_path, field: str, path, *, component: int | str | None = None
         return Path(path)
     except Exception:  # noqa: BLE001 - no display / no OSMesa: plots are optional
         return None
+
+
+# Headless OpenGL libraries VTK can render with, in VTK's own order of preference (EGL, then OSMesa);
+# the names are the ones VTK's loaders dlopen.
+_HEADLESS_GL = (("vtkEGLRenderWindow", ("libEGL.so.1", "libEGL.so")),
+                ("vtkOSOpenGLRenderWindow", ("libOSMesa.so.8", "libOSMesa.so.6", "libOSMesa.so")))
+
+
+@functools.cache
+def _offscreen_pyvista():
+    """pyvista, set up once for off-screen rendering; None if this machine cannot render at all.
+
+    Without an X display VTK (>= 9.4 wheels) first tries an X window, prints "bad X server connection"
+    and only then falls back to EGL or OSMesa. Naming the headless window class in
+    ``VTK_DEFAULT_OPENGL_WINDOW`` (read when a render window is created, so it may be set after
+    ``import vtk``) skips that probe: the picture is still rendered (EGL: Mesa or GPU), and no warning
+    is hidden. Done on Linux when DISPLAY is unset, or when PYVISTA_OFF_SCREEN=true asks for off-screen
+    rendering; otherwise a display is left alone, and so is a window class the user chose. Headless
+    with neither EGL nor OSMesa loadable, VTK would kill the process (segfault, not an exception):
+    hence None.
+    """
+    import pyvista as pv
+
+    linux = sys.platform.startswith("linux")
+    headless = linux and not os.environ.get("DISPLAY")
+    wanted = os.environ.get("PYVISTA_OFF_SCREEN", "false").lower() == "true"  # pyvista's own test
+    if linux and (headless or wanted) and not os.environ.get("VTK_DEFAULT_OPENGL_WINDOW"):
+        import ctypes
+
+        window = next((w for w, libs in _HEADLESS_GL if any(_loadable(ctypes, lib) for lib in libs)), None)
+        if window is not None:
+            os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = window
+        elif headless:
+            return None
+    if headless:
+        pv.OFF_SCREEN = True
+    return pv
+
+
+def _loadable(ctypes, lib: str) -> bool:
+    try:
+        ctypes.CDLL(lib)
+    except OSError:
+        return False
+    return True
