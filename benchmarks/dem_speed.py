@@ -2,15 +2,18 @@
 
     python benchmarks/dem_speed.py [--steps 20000] [--lammps-dir DIR] [--no-lammps] [--protocol]
 
-The problem (``/work/shared/bench/lammps/README.md``): 4,096 polydisperse disks (d uniform in
-0.2-0.6 mm, 2650 kg/m3), Hookean contact with history k_n = 1e8 N/m, k_t = 2/7 k_n,
+The problem (the one of the LAMMPS reference inputs prep.in, bench.in, export.in): 4,096 polydisperse
+disks (d uniform in 0.2-0.6 mm, 2650 kg/m3), Hookean contact with history k_n = 1e8 N/m, k_t = 2/7 k_n,
 gamma_n = 5e5 1/s (gamma_t = gamma_n / 2, as LAMMPS's NULL), mu = 0.5, dt = 1e-7 s, dense packing at
 100 kPa, then biaxial loading (axial strain rate 1/s, lateral stress 100 kPa).
 
-The packing is LAMMPS's ``packing.dump`` (made by prep.in + export.in). If LAMMPS (``lmp``) is
-installed, the script prepares it in a temp dir when needed and times ``bench.in`` in the same run;
-otherwise it generates a packing of the same specification itself and prints the README's LAMMPS
-figures as the baseline, saying so.
+The LAMMPS folder is given by ``--lammps-dir DIR`` or the environment variable ``FEMGRAN_LAMMPS_DIR``;
+it holds LAMMPS's ``packing.dump`` (made by prep.in + export.in) and/or those input files. If LAMMPS
+(``lmp``) is installed and the inputs are there, the script prepares the packing in that folder when
+needed and times ``bench.in`` in the same run. Without a folder (or without its packing) it generates a
+packing of the same specification itself and prints as the baseline the LAMMPS figures quoted in
+README_FIGURES (Debian's LAMMPS, 29 Sep 2021 update 2, measured on a 2-core machine on this problem:
+1 process and ``mpirun -np 2``), saying so.
 
 Differences to keep in mind: LAMMPS runs a periodic box with a Berendsen barostat; dem runs the same
 disks inside four rigid frictionless servo walls (its experiments' boundary). At 2 cores LAMMPS uses
@@ -37,7 +40,10 @@ import numpy as np  # noqa: E402
 import dem  # noqa: E402
 from dem.contacts import ContactLaw  # noqa: E402
 
-BENCH_DIR = Path("/work/shared/bench/lammps")
+LAMMPS_DIR_ENV = "FEMGRAN_LAMMPS_DIR"
+LAMMPS_INPUTS = ("prep.in", "bench.in", "export.in")
+# particle-steps/s (low, high) of LAMMPS per core count: Debian's LAMMPS (29 Sep 2021 update 2) on a
+# 2-core machine, same problem; 1 process, and 2 MPI ranks
 README_FIGURES = {1: (11.9e6, 12.2e6), 2: (19.0e6, 20.3e6)}
 LAW = ContactLaw(kn=1e8, kt=2.0 / 7.0 * 1e8, friction=0.5, gamma_n=5e5, gamma_t=2.5e5, local_damping=0.0,
                  density=2650.0)
@@ -118,11 +124,13 @@ def run_lammps(workdir: Path, steps: int, ranks: int) -> float | None:
 
 
 def prepare_lammps(workdir: Path) -> bool:
+    """Make ``packing.dump`` in ``workdir`` with LAMMPS if needed; False without ``lmp`` or its inputs."""
     if shutil.which("lmp") is None:
         return False
-    for name in ("prep.in", "bench.in", "export.in"):
-        if not (workdir / name).exists():
-            shutil.copy(BENCH_DIR / name, workdir / name)
+    missing = [name for name in LAMMPS_INPUTS if not (workdir / name).exists()]
+    if missing:
+        print(f"LAMMPS inputs {missing} not in {workdir}: LAMMPS not run")
+        return False
     if not (workdir / "dense100kPa.restart").exists():
         subprocess.run(["lmp", "-in", "prep.in"], cwd=workdir, capture_output=True, check=True)
     if not (workdir / "packing.dump").exists():
@@ -133,21 +141,26 @@ def prepare_lammps(workdir: Path) -> bool:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=20000)
-    ap.add_argument("--lammps-dir", type=Path, default=None, help="folder with packing.dump (and the .in files)")
+    ap.add_argument("--lammps-dir", type=Path, default=None,
+                    help=f"folder with packing.dump and/or prep.in, bench.in, export.in (default: ${LAMMPS_DIR_ENV}; "
+                         "neither: dem's own packing and the quoted LAMMPS figures)")
     ap.add_argument("--no-lammps", action="store_true", help="do not run LAMMPS even if installed")
     ap.add_argument("--protocol", action="store_true", help="also time the full thesis protocol for 4,000 disks")
     args = ap.parse_args(argv)
 
-    workdir = args.lammps_dir or Path(tempfile.gettempdir()) / "femgran_lammps_bench"
-    workdir.mkdir(parents=True, exist_ok=True)
-    have_lammps = (not args.no_lammps) and prepare_lammps(workdir)
-    dump = workdir / "packing.dump"
-    if dump.exists():
+    env_dir = os.environ.get(LAMMPS_DIR_ENV)
+    workdir = args.lammps_dir or (Path(env_dir) if env_dir else None)
+    if workdir is not None and not workdir.is_dir():
+        ap.error(f"LAMMPS folder {str(workdir)!r} does not exist")
+    have_lammps = workdir is not None and (not args.no_lammps) and prepare_lammps(workdir)
+    dump = None if workdir is None else workdir / "packing.dump"
+    if dump is not None and dump.exists():
         pos, radii, size = read_dump(dump)
         print(f"packing: LAMMPS packing.dump ({len(radii)} disks, box {size[0] * 1e3:.2f} x {size[1] * 1e3:.2f} mm)")
         state = bench_state(pos, radii, size)
     else:
-        print("packing: LAMMPS not available -> dem generated a packing of the same specification")
+        why = "no LAMMPS folder given" if workdir is None else f"no packing.dump in {workdir}"
+        print(f"packing: {why} -> dem generated a packing of the same specification")
         state = own_packing()
     print(f"settled state: Z = {dem.coordination_number(state, exclude_rattlers=False):.2f} contacts/disk, "
           f"wall stress {np.diag(dem.stress_from_walls(state)).round(1)} kPa")
@@ -171,7 +184,8 @@ def main(argv=None) -> None:
             base, label = measured, "LAMMPS measured now"
         else:
             lo, hi = README_FIGURES[cores]
-            base, label = 0.5 * (lo + hi), f"LAMMPS README figure {lo / 1e6:.1f}-{hi / 1e6:.1f} M (not run here)"
+            base, label = 0.5 * (lo + hi), (f"LAMMPS {lo / 1e6:.1f}-{hi / 1e6:.1f} M (not run here: quoted figure, "
+                                            "Debian LAMMPS 29 Sep 2021 on a 2-core machine)")
         print(f"{cores} core(s): dem {ours / 1e6:6.2f} M particle-steps/s | {label}: {base / 1e6:6.2f} M | "
               f"ratio dem/LAMMPS = {ours / base:.2f}")
 

@@ -1,6 +1,6 @@
 """Numba 2D DEM of disks: sample generation, biaxial and strain-rotation experiments, stereological fabric.
 
-Public API (see ``/work/shared/spec/API.md``)::
+Public API::
 
     import dem
     sample = dem.generate(n_particles=4000, psd="ottawa_c109", seed=1)

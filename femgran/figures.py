@@ -1,4 +1,4 @@
-"""``femgran figures``: regenerate the figure set from the package's own simulations (CASES.md section 4).
+"""``femgran figures``: regenerate the figure set from the package's own simulations (PNG + CSV each).
 
 The material figures come from :mod:`material.figures` (element tests: Figs. 14, 20, 21, 45-47 and the
 strength envelope). The DEM figures (Figs. 23-34, 38-44) are written by ``femgran dem sweep`` and the

@@ -1,6 +1,6 @@
 """Gauss-point material laws for granular materials: the microplane CPA model and reference laws.
 
-Public names (API.md): ``CPAModel``, ``CPAParameters``, ``load_preset``, ``load_parameters``,
+Public names: ``CPAModel``, ``CPAParameters``, ``load_preset``, ``load_parameters``,
 ``LinearElastic``, ``VonMises``, and the modules ``planes``, ``anisotropy``, ``failure``, ``driver``.
 """
 

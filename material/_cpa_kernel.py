@@ -1,6 +1,6 @@
 """Batch kernels of the CPA law: the update of N Gauss points in parallel, strengths, Mandel conversions.
 
-Pure functions over arrays (STYLE.md): :mod:`material.cpa` validates the input, prepares the constants
+Pure functions over arrays: :mod:`material.cpa` validates the input, prepares the constants
 (:class:`material._cpa_local.Law`) and calls :func:`cpa_batch`. The law is in three parts:
 :mod:`material._cpa_plane` (one plane: strength, hardening, kinematics), :mod:`material._cpa_local` (the
 local problem of one point, its solver and the consistent tangent) and this module (the loop over points).

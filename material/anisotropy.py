@@ -1,6 +1,6 @@
 """Inherent and induced anisotropy: material axes, microstructure tensors, eta_f(n) and c(n).
 
-Conventions (MODEL.md):
+Conventions (``docs/model.md``, "Material axes and the deposition angle", "Inherent and induced anisotropy"):
 
 * Material axes are a 3x3 array ``R`` whose **columns** are e1, e2, e3; e2 is the deposition axis
   (normal to the bedding planes). A vector with components ``v_ref`` in the material frame has global
@@ -76,7 +76,7 @@ def axes_from_frame(axes, *, tol: float = 1e-8) -> np.ndarray:
 
 
 def default_axes() -> np.ndarray:
-    """The default material frame, ``axes_from_alpha(0)``: e2 = global z (API.md)."""
+    """The default material frame, ``axes_from_alpha(0)``: e2 = global z."""
     return axes_from_alpha(0.0)
 
 

@@ -1,6 +1,7 @@
 """Analytic failure of the CPA model: the critical plane (eqs. 2.1-2.5) and strength envelopes.
 
-For a stress sigma (tension positive, kPa) and a plane with unit normal n (MODEL.md, "Analytic failure"):
+For a stress sigma (tension positive, kPa) and a plane with unit normal n
+(``docs/model.md``, "Analytic failure criterion"):
 
     t = sigma n,  sigma_N = -n.t (compression +),  t_s = t - (n.t) n,  tau = |t_s|,  s = t_s / tau   (2.1-2.2)
     F(n) = tau - eta_f(n) sigma_N - c(n)                                                               (2.3)

@@ -1,6 +1,6 @@
 """The thesis's model figures regenerated from the package's own element simulations.
 
-Each figure is written as a PNG with the data behind it as a CSV of the same stem (CASES.md section 4):
+Each figure is written as a PNG with the data behind it as a CSV of the same stem (``femgran figures`` writes them all):
 
 * ``fig14_friction_distribution``: eta_f(alpha) of the ``ottawa_c109`` preset (eq. 2.20) against the
   slopes of the direct-shear envelopes (Fig. 8 data shipped with the package);

@@ -1,6 +1,6 @@
 """Parameters of the microplane CPA law: an immutable, validated dataclass, presets, TOML/JSON I/O.
 
-Units throughout: kPa for stresses and moduli, m for lengths (MODEL.md, "Units and signs").
+Units throughout: kPa for stresses and moduli, m for lengths (``docs/model.md``, "Units").
 Every value is checked when the object is made (also by :meth:`CPAParameters.replace`), and a bad
 value raises ``ValueError`` naming the key, the value and the allowed range; an unknown key in a file
 raises ``KeyError`` naming it and the keys that are allowed.
@@ -37,7 +37,7 @@ _FILE_VERSION = 1
 
 @dataclass(frozen=True, slots=True)
 class CPAParameters:
-    """Microplane Critical Plane Approach law (MODEL.md; thesis eqs. 2.3-2.4, 2.16-2.17, 3.15).
+    """Microplane Critical Plane Approach law (``docs/model.md``; thesis eqs. 2.3-2.4, 2.16-2.17, 3.15).
 
     Attributes
     ----------

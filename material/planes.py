@@ -6,7 +6,7 @@ plane quantity of the model,
 
     <f> = (1 / 4 pi) * integral over the sphere of f(n) dS  ~=  sum_a w_a f(n_a)
 
-(MODEL.md, "Integration planes"; thesis eq. 2.9 with the 1/(8 pi) of the +/- pairs folded in).
+(``docs/model.md``, "Integration planes"; thesis eq. 2.9 with the 1/(8 pi) of the +/- pairs folded in).
 
 ``available_rules()`` gives each rule's **degree** D: the full symmetric 2M-point rule integrates every
 polynomial in (n1, n2, n3) of degree <= D exactly. Because the rules are centrally symmetric, odd

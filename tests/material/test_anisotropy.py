@@ -116,7 +116,8 @@ def test_induced_tensor_is_beta_dev_strain():
 
 
 def test_vertical_compression_strengthens_vertical_planes():
-    """MODEL.md: with beta > 0, axial compression along z raises eta_f on planes whose normals are horizontal."""
+    """With beta > 0, axial compression along z raises eta_f on planes whose normals are horizontal
+    (``docs/model.md``, "Inherent and induced anisotropy")."""
     p = load_preset("ottawa_c109_induced")
     eps = np.diag([0.33e-2, 0.33e-2, -1e-2])  # tension +: compression along z, lateral expansion
     eta = friction_coefficient(p, np.array([[1.0, 0, 0], [0, 0, 1.0]]), strain=eps)

@@ -141,7 +141,7 @@ def test_tangent_in_elastic_unloading_is_hooke():
 def test_update_is_continuous_through_a_switching_event_and_its_tangent_is_the_derivative():
     """On a line d_eps(s) = d_eps0 + s h through the point where the first plane starts to load, the
     stress is continuous, and the difference quotient on each side matches the returned tangent there
-    (the test of a deterministic, piecewise smooth update: ROBUSTNESS.md, section 1)."""
+    (the update is a deterministic, piecewise smooth function of its input)."""
     model = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0))
     sig, st = _loaded(model, 8)
     sig, st, _ = model.update(-0.4 * DE[None], sig, st)  # unload: every plane below its curve

@@ -1,4 +1,5 @@
-"""Element tests of the CPA law through material.driver: the trends the thesis states (CASES.md section 1)."""
+"""Element tests of the CPA law through material.driver: the trends the thesis states
+(anisotropy of stiffness and strength, compaction then dilation, principal stress rotation)."""
 
 import numpy as np
 import pytest
