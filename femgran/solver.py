@@ -519,7 +519,8 @@ class NewtonSolver:
         """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
 
         writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
-        observers : callables ``f(solver) -> dict`` adding columns to each history row.
+        observers : callables ``f(solver) -> dict`` adding columns to each history row; ``solver.reaction``
+            then holds f_int - f_ext of the converged step (the reactions on the prescribed DOFs).
         dt_max : largest load-factor step (default t_end / steps: regrowth after a cut-back never
             exceeds the nominal step).
         fixed_steps : no regrowth at all after a cut-back (equal steps whenever nothing fails, e.g. to
@@ -596,6 +597,7 @@ class NewtonSolver:
 
     def _row(self, n_step, iters, residuals, cuts, observers):
         r = self.disc.internal_force(self.points.stress) - self.external(self.t)
+        self.reaction = r  # computed once per step; the observers read it
         row = {"step": n_step, "load_factor": self.t, "iterations": iters, "residual": residuals[-1], "cutbacks": cuts}
         for d in self.dirichlet:
             if d.name:

@@ -40,6 +40,8 @@ __all__ = [
     "copy_state",
     "take_state",
     "where_state",
+    "check_positive",
+    "check_steps",
 ]
 
 STATUS_OK = 0
@@ -131,3 +133,21 @@ def where_state(mask: np.ndarray, new: State, old: State) -> State:
         m = mask.reshape((-1,) + (1,) * (new[k].ndim - 1))
         out[k] = np.where(m, new[k], old[k])
     return out
+
+
+def check_positive(name: str, value, allow_zero: bool = False) -> float:
+    """``value`` as a finite float > 0 (>= 0 with ``allow_zero``), else ``ValueError`` naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name} = {value!r}: must be {'>= 0' if allow_zero else '> 0'} (finite)")
+    return v
+
+
+def check_steps(steps, name: str = "steps") -> int:
+    """``steps`` as an int >= 1, else ``ValueError`` naming it."""
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"{name} = {steps!r}: must be an integer >= 1")
+    return int(steps)

@@ -42,7 +42,7 @@ from pathlib import Path as _FilePath
 
 import numpy as np
 
-from material.base import STATUS_FAILED, copy_state
+from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
 from material.tensors import from_mandel, to_mandel, to_mandel_matrix
 
@@ -610,19 +610,6 @@ def _make_model(model_or_params, alpha_deg: float, rule: str | None):
     return model, getattr(model, "params", None)
 
 
-def _check_positive(name: str, value: float, allow_zero: bool = False) -> float:
-    v = float(value)
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} = {value!r}: must be {'>= 0' if allow_zero else '> 0'} (finite)")
-    return v
-
-
-def _check_steps(steps) -> int:
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ValueError(f"steps = {steps!r}: must be an integer >= 1")
-    return int(steps)
-
-
 def _finish(res: ElementResult, test: str, params, extra_meta: dict, plot_pairs) -> ElementResult:
     res.metadata["test"] = test
     res.metadata.update(extra_meta)
@@ -679,9 +666,9 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
         effective stress, compression +; negative in extension: NOT sqrt(3 J2) here), ``eta`` = q/p,
         ``u_kPa``.
     """
-    p0 = _check_positive("p0_kPa", p0_kPa)
-    ea = _check_positive("axial_strain", axial_strain)
-    steps = _check_steps(steps)
+    p0 = check_positive("p0_kPa", p0_kPa)
+    ea = check_positive("axial_strain", axial_strain)
+    steps = check_steps(steps)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-p0 * np.eye(3))
     sign = 1.0 if extension else -1.0
@@ -709,9 +696,9 @@ def oedometer(model_or_params, p0_kPa: float = 10.0, alpha_deg: float = 0.0, axi
     sigma_xx / sigma_zz (secant, total stresses including the start) and ``K0_incremental`` =
     (sigma_xx - sigma_xx,0) / (sigma_zz - sigma_zz,0) (the elastic value nu / (1 - nu)); ``K0_y`` for y.
     """
-    p0 = _check_positive("p0_kPa", p0_kPa)
-    ea = _check_positive("axial_strain", axial_strain)
-    steps = _check_steps(steps)
+    p0 = check_positive("p0_kPa", p0_kPa)
+    ea = check_positive("axial_strain", axial_strain)
+    steps = check_steps(steps)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-p0 * np.eye(3))
     path.add(steps, eps_zz=-ea, eps_xx=0.0, eps_yy=0.0, eps_yz=0.0, eps_xz=0.0, eps_xy=0.0, name="oedometer")
@@ -756,14 +743,14 @@ def simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
     Columns: ``gamma`` (2 eps_xz), ``tau_kPa`` = sigma_xz (shear stress on the layer, + with gamma),
     ``sigma_n_kPa`` = -sigma_zz (compression +), ``tau_over_sigma_n``, ``eps_n`` = eps_zz (dilation +).
     """
-    sn = _check_positive("sigma_n_kPa", sigma_n_kPa)
+    sn = check_positive("sigma_n_kPa", sigma_n_kPa)
     gamma = float(shear_strain)
     if not math.isfinite(gamma) or gamma == 0:
         raise ValueError(f"shear_strain = {shear_strain!r}: must be a finite non-zero engineering shear strain")
-    steps = _check_steps(steps)
+    steps = check_steps(steps)
     if lateral not in ("band", "stress"):
         raise ValueError(f"lateral = {lateral!r}; allowed: 'band', 'stress'")
-    kk = 1.0 if k0 is None else _check_positive("k0", k0)
+    kk = 1.0 if k0 is None else check_positive("k0", k0)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-sn * np.diag([kk, kk, 1.0]))
     comps = {"eps_xz": gamma / 2.0}
@@ -813,7 +800,7 @@ def direct_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: float = 
                              f"{model_or_params.t}; change it with params.replace(t=...)")
         t = model_or_params.t
     else:
-        t = _check_positive("band_thickness_m", 0.006 if band_thickness_m is None else band_thickness_m)
+        t = check_positive("band_thickness_m", 0.006 if band_thickness_m is None else band_thickness_m)
     res = simple_shear(model_or_params, sigma_n_kPa, alpha_deg, shear_strain=d / t, steps=steps, k0=k0,
                        lateral=lateral, rule=rule, **engine)
     res.add_column("shear_displacement_m", res["gamma"] * t, "shear displacement gamma t [m]")
@@ -831,11 +818,11 @@ def cyclic_simple_shear(model_or_params, sigma_n_kPa: float = 50.0, alpha_deg: f
     Same boundary conditions as :func:`simple_shear` (isotropic start, band kinematics);
     ``constant_height=True`` holds eps_zz (the normal stress then evolves, e.g. decreases).
     """
-    sn = _check_positive("sigma_n_kPa", sigma_n_kPa)
-    amp = _check_positive("gamma_amplitude", gamma_amplitude)
+    sn = check_positive("sigma_n_kPa", sigma_n_kPa)
+    amp = check_positive("gamma_amplitude", gamma_amplitude)
     if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
         raise ValueError(f"cycles = {cycles!r}: must be an integer >= 1")
-    nq = _check_steps(steps_per_quarter)
+    nq = check_steps(steps_per_quarter)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-sn * np.eye(3))
     base = {"eps_xx": 0.0, "eps_yy": 0.0, "eps_xy": 0.0, "sig_yz": 0.0}
@@ -865,9 +852,9 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     (compression +), ``q_kPa`` = sqrt(3 J2), ``sigma2_kPa`` = -sigma_yy (the out-of-plane stress),
     ``b`` = (sigma2 - sigma3)/(sigma1 - sigma3) on the principal values.
     """
-    p0 = _check_positive("p0_kPa", p0_kPa)
-    ea = _check_positive("axial_strain", axial_strain)
-    steps = _check_steps(steps)
+    p0 = check_positive("p0_kPa", p0_kPa)
+    ea = check_positive("axial_strain", axial_strain)
+    steps = check_steps(steps)
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-p0 * np.eye(3))
     path.add(steps, eps_zz=-ea, sig_xx=-p0, eps_yy=0.0, **_ZERO_SHEAR, name="plane strain")
@@ -891,9 +878,9 @@ def true_triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0
     them by the linear condition sigma_yy - b sigma_zz - (1 - b) sigma_xx = 0 (all tension +); shear
     stresses 0. b = 0 is triaxial compression, b = 1 triaxial extension (in stress space).
     """
-    p0 = _check_positive("p0_kPa", p0_kPa)
-    ea = _check_positive("axial_strain", axial_strain)
-    steps = _check_steps(steps)
+    p0 = check_positive("p0_kPa", p0_kPa)
+    ea = check_positive("axial_strain", axial_strain)
+    steps = check_steps(steps)
     bb = float(b)
     if not (0.0 <= bb <= 1.0):
         raise ValueError(f"b = {b!r}: allowed 0 <= b <= 1")
@@ -939,12 +926,12 @@ def rotation(model_or_params="ottawa_c109_induced", p0_kPa: float = 14.0, delta_
     (compression +), ``eps_x'x'`` etc. in the columns ``eps_11r``, ``eps_22r``, ``eps_12r`` (tension +,
     rotated frame, measured from the start of the path).
     """
-    p0 = _check_positive("p0_kPa", p0_kPa)
-    pre = _check_positive("preshear_strain", preshear_strain, allow_zero=True)
-    ea = _check_positive("axial_strain", axial_strain)
-    steps = _check_steps(steps)
-    psteps = _check_steps(preshear_steps if preshear_steps is not None else steps)
-    usteps = _check_steps(unload_steps)
+    p0 = check_positive("p0_kPa", p0_kPa)
+    pre = check_positive("preshear_strain", preshear_strain, allow_zero=True)
+    ea = check_positive("axial_strain", axial_strain)
+    steps = check_steps(steps)
+    psteps = check_steps(preshear_steps if preshear_steps is not None else steps)
+    usteps = check_steps(unload_steps)
     dpsi = float(delta_psi_deg)
     if not math.isfinite(dpsi):
         raise ValueError(f"delta_psi_deg = {delta_psi_deg!r}: must be a finite angle in degrees")

@@ -34,16 +34,17 @@ concentrates in a band (:func:`band_angle`). ``params["regularisation"]`` record
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
-                                  nodes_near, run_folder, solver_options)
-from femgran.solver import Dirichlet, NewtonSolver
-from material.factory import make_material
+from femgran.cases.base import Output, Problem, run
+from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
+from femgran.solver import Dirichlet
 
-__all__ = ["biaxial", "band_angle"]
+__all__ = ["Biaxial", "biaxial", "band_angle"]
 
 
 def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = None,
@@ -87,6 +88,108 @@ def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = No
     return angle, bool(best >= 2.5 * uniform)
 
 
+@dataclass(frozen=True)
+class Biaxial:
+    """The plane-strain biaxial specimen W x 2W with an imperfection (module docstring); validated when made.
+
+    p0_kPa : confining pressure [kPa]; alpha_deg : deposition angle from the vertical y [deg].
+    width_m : W [m]; axial_strain : final axial strain (compression +); steps : nominal steps.
+    resolution : elements across the width (2 x as many over the height); order : 1 or 2.
+    imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
+    weak_zone : relative reduction of eta0 in the elements near (0, weak_zone_height H) (0: none;
+        needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
+    platens : "smooth" (the end faces slide freely) or "rough" (no lateral displacement of the end faces).
+    """
+
+    name: ClassVar[str] = "biaxial"
+    plane_strain: ClassVar[bool] = True
+
+    p0_kPa: float = 100.0
+    alpha_deg: float = 0.0
+    width_m: float = 0.05
+    axial_strain: float = 0.08
+    steps: int = 40
+    resolution: int = 8
+    order: int = 1
+    imperfection: float = 0.02
+    volumetric: str = "bbar"
+    weak_zone: float = 0.0
+    weak_zone_height: float = 0.25
+    platens: str = "smooth"
+
+    def __post_init__(self):
+        check_positive("p0_kPa", self.p0_kPa)
+        check_positive("width_m", self.width_m)
+        check_positive("axial_strain", self.axial_strain)
+        check_steps(self.steps)
+        if not 0 <= check_positive("imperfection", self.imperfection, allow_zero=True) < 0.2:
+            raise ValueError(f"imperfection = {self.imperfection!r}: allowed 0 <= imperfection < 0.2")
+        if self.platens not in ("smooth", "rough"):
+            raise ValueError(f"platens = {self.platens!r}: allowed 'smooth' or 'rough'")
+        if int(self.resolution) < 2:
+            raise ValueError(f"resolution = {self.resolution!r}: must be >= 2")
+        if not 0 <= check_positive("weak_zone", self.weak_zone, allow_zero=True) < 0.5:
+            raise ValueError(f"weak_zone = {self.weak_zone!r}: allowed 0 <= weak_zone < 0.5")
+        if self.weak_zone > 0 and not 0.0 < float(self.weak_zone_height) < 1.0:
+            raise ValueError(f"weak_zone_height = {self.weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
+
+    def build(self, mat) -> Problem:
+        from femgran.assembly import Discretisation
+        from femgran.mesh import name_box_boundaries, rectangle
+
+        p0, W, ea, imp, n = float(self.p0_kPa), float(self.width_m), float(self.axial_strain), \
+            float(self.imperfection), int(self.resolution)
+        H = 2 * W
+        m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, 2 * n + 1))
+        p = m.p.copy()
+        p[0] += imp * W * (1 - p[0] / W) * np.exp(-(((p[1] - 0.5 * H) / (0.1 * H)) ** 2))
+        m = name_box_boundaries(type(m)(p, m.t))
+        # the bump moved the left face: name it by the original x = 0 nodes
+        left_nodes = np.flatnonzero(np.abs(m.p[0] - imp * W * np.exp(-(((m.p[1] - 0.5 * H) / (0.1 * H)) ** 2)))
+                                    < 1e-12 * W)
+        left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
+        d = Discretisation(m, self.order, self.volumetric)
+        if self.weak_zone > 0:
+            mat = _with_weak_zone(mat, float(self.weak_zone), m, d, W, float(self.weak_zone_height) * H)
+        b = m.boundaries
+        bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
+        right = d.facet_scalar_dofs(b["right"])
+        left = d.facet_scalar_dofs(left_facets)
+        if self.platens == "smooth":  # u_y only, and u_x = 0 at the corner (0, 0) against rigid-body drift
+            bcs = [Dirichlet(d.vector_dofs(bot, [1]), 0.0, name="bottom"),
+                   Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
+                   Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
+        else:  # rough: the platens hold the end faces' lateral displacement too
+            bcs = [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0, name="bottom"),
+                   Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
+                   Dirichlet(d.vector_dofs(top, [0]), 0.0)]
+        f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
+        snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
+        rx, lx = d.vector_dofs(right, [0]), d.vector_dofs(left, [0])
+
+        def observe(s):
+            q = -float(np.sum(s.reaction[bcs[1].dofs])) / W - p0
+            e_a = -float(np.mean(s.u[bcs[1].dofs])) / H
+            e_l = -(float(np.mean(s.u[rx])) - float(np.mean(s.u[lx]))) / W
+            snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
+            return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
+
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe,
+                       record={"height_m": H, "vertical_axis": "y", "regularisation": _regularisation(mat)},
+                       data={"snaps": snaps})
+
+    def summarise(self, sol, problem) -> dict:
+        if len(sol.history) > 1:
+            return _peak_and_band(sol, problem.data["snaps"], problem.disc, float(self.p0_kPa), float(self.width_m),
+                                  2 * float(self.width_m), float(self.imperfection))
+        nan = float("nan")  # no converged step: nothing to measure
+        return dict(band_angle_deg=nan, localised=False, peak_friction_deg=nan, peak_dilatancy_deg=nan,
+                    peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
+
+    def plots(self, sol, out_dir: Path) -> None:
+        _plots(sol, out_dir)
+
+
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
             axial_strain: float = 0.08, steps: int = 40, resolution: int = 8, order: int = 1,
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
@@ -95,19 +198,11 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
             platens: str = "smooth", solver=None):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
-    Parameters
-    ----------
-    material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
-    p0_kPa : confining pressure [kPa]; alpha_deg : deposition angle from the vertical y [deg].
-    width_m : W [m]; axial_strain : final axial strain (compression +); steps : nominal steps.
-    resolution : elements across the width (2 x as many over the height); order : 1 or 2.
-    imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
-    weak_zone : relative reduction of eta0 in the elements near (0, weak_zone_height H) (0: none;
-        needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
-    platens : "smooth" (the default: the end faces slide freely) or "rough" (no lateral displacement
-        of the end faces).
+    ``run(Biaxial(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
+    the arguments as in :class:`Biaxial`; material: material object, CPAParameters, preset name,
+    parameter file or None (CPA ``ottawa_c109``, :func:`material.factory.make_material`).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
-        ``tol`` (relative residual tolerance) and ``linear_solver`` replace those fields when given.
+    ``tol`` (relative residual tolerance) and ``linear_solver`` replace those fields when given.
 
     Returns
     -------
@@ -116,92 +211,10 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     strain increment from that step to the end), ``reference_angles_deg`` (Coulomb, Roscoe, Arthur),
     ``localised``; history columns ``eps_a``, ``eps_v``, ``q_kPa`` (s1 - s3, compression +).
     """
-    from femgran.assembly import Discretisation
-    from femgran.mesh import name_box_boundaries, rectangle
-
-    p0 = check_positive("p0_kPa", p0_kPa)
-    W = check_positive("width_m", width_m)
-    ea = check_positive("axial_strain", axial_strain)
-    imp = check_positive("imperfection", imperfection, allow_zero=True)
-    if imp >= 0.2:
-        raise ValueError(f"imperfection = {imperfection!r}: allowed 0 <= imperfection < 0.2")
-    if platens not in ("smooth", "rough"):
-        raise ValueError(f"platens = {platens!r}: allowed 'smooth' or 'rough'")
-    n = int(resolution)
-    if n < 2:
-        raise ValueError(f"resolution = {resolution!r}: must be >= 2")
-    H = 2 * W
-    m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, 2 * n + 1))
-    p = m.p.copy()
-    p[0] += imp * W * (1 - p[0] / W) * np.exp(-(((p[1] - 0.5 * H) / (0.1 * H)) ** 2))
-    m = name_box_boundaries(type(m)(p, m.t))
-    # the bump moved the left face: name it by the original x = 0 nodes
-    left_nodes = np.flatnonzero(np.abs(m.p[0] - imp * W * np.exp(-(((m.p[1] - 0.5 * H) / (0.1 * H)) ** 2))) < 1e-12 * W)
-    left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
-    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=True)
-    d = Discretisation(m, order, volumetric)
-    weak = check_positive("weak_zone", weak_zone, allow_zero=True)
-    if weak > 0:
-        yw = float(weak_zone_height)
-        if not 0.0 < yw < 1.0:
-            raise ValueError(f"weak_zone_height = {weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
-        mat = _with_weak_zone(mat, weak, m, d, W, yw * H)
-    b = m.boundaries
-    bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
-    right = d.facet_scalar_dofs(b["right"])
-    left = d.facet_scalar_dofs(left_facets)
-    if platens == "smooth":  # u_y only, and u_x = 0 at the corner (0, 0) against rigid-body drift
-        bcs = [Dirichlet(d.vector_dofs(bot, [1]), 0.0, name="bottom"),
-               Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
-               Dirichlet(d.vector_dofs(nodes_near(d, m.p[:, np.argmin(m.p[0] + m.p[1])]), [0]), 0.0)]
-    else:  # rough: the platens hold the end faces' lateral displacement too
-        bcs = [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0, name="bottom"),
-               Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
-               Dirichlet(d.vector_dofs(top, [0]), 0.0)]
-    f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
-    out_dir = run_folder(out)
-    mat = keep_failed_points(mat, out_dir)
-    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
-    snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
-    rx, lx = d.vector_dofs(right, [0]), d.vector_dofs(left, [0])
-
-    def observe(s):
-        r = d.internal_force(s.points.stress) - s.external(s.t)
-        q = -float(np.sum(r[bcs[1].dofs])) / W - p0
-        e_a = -float(np.mean(s.u[bcs[1].dofs])) / H
-        e_l = -(float(np.mean(s.u[rx])) - float(np.mean(s.u[lx]))) / W
-        snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
-        return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
-
-    writer = None
-    params = {"case": "biaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "width_m": W, "height_m": H,
-              "axial_strain": ea, "steps": int(steps), "resolution": n, "order": int(order), "imperfection": imp,
-              "weak_zone": weak, "weak_zone_height": float(weak_zone_height), "volumetric": volumetric,
-              "solver": newton.options.to_dict(), "material": material_record(mat),
-              "ndofs": d.ndofs, "vertical_axis": "y", "regularisation": _regularisation(mat), "platens": platens}
-    if out_dir is not None:
-        from femgran.output import SeriesWriter, write_parameters
-
-        write_parameters(out_dir / "parameters.json", params)
-        writer = SeriesWriter(out_dir, d, name="biaxial", every=write_every)
-    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
-    if len(sol.history) > 1:
-        sol.extra.update(_peak_and_band(sol, snaps, d, p0, W, H, imp))
-    else:  # no converged step: nothing to measure
-        nan = float("nan")
-        sol.extra.update(band_angle_deg=nan, localised=False, peak_friction_deg=nan, peak_dilatancy_deg=nan,
-                         peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
-    sol.extra["params"] = params
-    if out_dir is not None:
-        from femgran.output import write_parameters
-
-        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
-                                                    ("band_angle_deg", "localised", "peak_friction_deg",
-                                                     "peak_dilatancy_deg", "peak_q_kPa", "reference_angles_deg")})
-        if plots:
-            _plots(sol, out_dir)
-    return sol
+    case = Biaxial(p0_kPa, float(alpha_deg), width_m, axial_strain, steps, resolution, order, imperfection,
+                   volumetric, weak_zone, weak_zone_height, platens)
+    return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
+               output=Output(out, progress, write_every, plots))
 
 
 def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> dict:
@@ -231,14 +244,12 @@ def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> 
 
 def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
     """A Composite: ``mat`` everywhere but in the elements near (0, y0), where eta0 is (1 - weak) x."""
-    from material.composite import Composite
     from material import CPAModel
+    from material.composite import Composite
 
     if not isinstance(mat, CPAModel):
         raise ValueError(f"weak_zone = {weak!r}: needs a CPA material (CPAModel, parameters or a preset), "
                          f"got {type(mat).__name__}")
-    if weak >= 0.5:
-        raise ValueError(f"weak_zone = {weak!r}: allowed 0 <= weak_zone < 0.5")
     centres = mesh.p[:, mesh.t].mean(axis=1)
     h = d.element_size()[:: d.nqp]
     inside = np.hypot(centres[0], centres[1] - y0) < 0.1 * W + 0.5 * h

@@ -1,9 +1,11 @@
 """Case files: a boundary-value run described as data (TOML), for ``femgran run case.toml``.
 
-Format::
+Format (four tables, each checked against the dataclass it fills)::
 
-    case = "footing"              # element | triaxial | footing | biaxial
-    out = "out/footing"           # run folder (optional; relative to the current directory)
+    [case]                        # femgran.cases.<Case> fields
+    name = "footing"              # element | triaxial | footing | biaxial | cavity
+    width_m = 1.0
+    alpha_deg = 30.0
 
     [material]                    # optional; default: CPA ottawa_c109 with axes from alpha_deg
     law = "cpa"                   # cpa | von_mises | drucker_prager | linear_elastic
@@ -15,40 +17,49 @@ Format::
     # drucker_prager: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg, match, hardening_kPa
     # linear_elastic: E_kPa, nu
 
-    [parameters]                  # keyword arguments of femgran.cases.<case>
-    width_m = 1.0
-    alpha_deg = 30.0
-
-    [solver]                      # optional: fields of femgran.solver.SolverOptions
+    [solver]                      # optional: femgran.solver.SolverOptions fields
     tol = 1e-8
     max_iter = 25
 
-Every key is checked before any computation: an unknown key raises ``ValueError`` naming it and the
-allowed keys.
+    [output]                      # optional: femgran.cases.base.Output fields
+    out = "out/footing"           # run folder, relative to the current directory
+    write_every = 1
+
+Every key is checked before any computation: an unknown key raises ``ValueError`` naming it, its table
+and the allowed keys. Paths in the file (a mesh, a parameter file) are relative to the file.
+
+The earlier layout (``case = "footing"``, ``out = ...`` and a ``[parameters]`` table of the case
+function's keywords) is still read.
 """
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 import tomllib
 from pathlib import Path
 
 __all__ = ["load_case", "run_case", "CASES", "LAWS"]
 
-CASES = ("element", "triaxial", "footing", "biaxial")
+CASES = ("element", "triaxial", "footing", "biaxial", "cavity")
 LAWS = {
     "cpa": ("preset", "parameters", "rule", "set", "stabilisation"),
     "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "linear_elastic": ("E_kPa", "nu"),
 }
-_TOP = ("case", "out", "material", "parameters", "solver")
+_TABLES = ("case", "material", "solver", "output")
+_LEGACY_TOP = ("case", "out", "material", "parameters", "solver")
 
 
-def _case_function(name):
-    import femgran.cases as c
+def case_types() -> dict:
+    """name -> case dataclass."""
+    from femgran.cases.biaxial import Biaxial
+    from femgran.cases.cavity import Cavity
+    from femgran.cases.element import Element
+    from femgran.cases.footing import Footing
+    from femgran.cases.triaxial import Triaxial
 
-    return getattr(c, name)
+    return {c.name: c for c in (Element, Triaxial, Footing, Biaxial, Cavity)}
 
 
 def _check_keys(where: str, given, allowed) -> None:
@@ -57,11 +68,15 @@ def _check_keys(where: str, given, allowed) -> None:
         raise ValueError(f"{where}: unknown key(s) {unknown}; allowed {sorted(allowed)}")
 
 
-def _table(doc: dict, name: str) -> dict:
-    value = doc[name]
+def _table(doc: dict, name: str, where: str) -> dict:
+    value = doc.get(name, {})
     if not isinstance(value, dict):
-        raise ValueError(f"{name} = {value!r}: must be a table [{name}]")
-    return value
+        raise ValueError(f"{where}: {name} = {value!r} must be a table [{name}]")
+    return dict(value)
+
+
+def _fields(cls) -> list[str]:
+    return [f.name for f in dataclasses.fields(cls)]
 
 
 def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base: Path = Path(".")):
@@ -95,8 +110,30 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
         raise ValueError(f"[material] law {law!r}: {exc}") from None
 
 
-def load_case(path) -> tuple[str, dict]:
-    """Read and validate a case file. Returns (case name, keyword arguments incl. ``material``)."""
+def _legacy(doc: dict, where: str) -> dict:
+    """The earlier layout (``case = "name"``, ``out``, ``[parameters]``) as the four tables."""
+    from femgran.cases.base import Output
+
+    _check_keys(where, doc, _LEGACY_TOP)
+    params = _table(doc, "parameters", where)
+    output = {k: params.pop(k) for k in [f for f in _fields(Output) if f in params]}
+    if "out" in doc:
+        output.setdefault("out", doc["out"])
+    solver = _table(doc, "solver", where)
+    for key in ("tol", "linear_solver"):
+        if key in params:
+            solver[key] = params.pop(key)
+    tables = {"case": {"name": doc["case"], **params}, "solver": solver, "output": output}
+    if "material" in doc:
+        tables["material"] = doc["material"]
+    return tables
+
+
+def load_case(path):
+    """Read and validate a case file. Returns (case, material, solver options, output)."""
+    from femgran.cases.base import Output
+    from femgran.cases.common import solver_options
+
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"case file {str(p)!r}: not found")
@@ -104,42 +141,41 @@ def load_case(path) -> tuple[str, dict]:
         doc = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"case file {str(p)!r}: not valid TOML ({exc})") from None
-    _check_keys(f"case file {p.name}", doc, _TOP)
-    case = doc.get("case")
-    if case not in CASES:
-        raise ValueError(f"case file {p.name}: case = {case!r}; allowed {list(CASES)}")
-    func = _case_function(case)
-    params = dict(doc.get("parameters", {}))
-    allowed = [k for k in inspect.signature(func).parameters if k not in ("material", "solver")]
-    _check_keys(f"[parameters] of case {case!r}", params, allowed)
-    if "mesh" in params:
-        mp = Path(params["mesh"])
-        params["mesh"] = str(mp if mp.is_absolute() or mp.exists() else p.parent / mp)
-        if not Path(params["mesh"]).is_file():
-            raise FileNotFoundError(f"[parameters] mesh = {str(mp)!r}: file not found")
-    alpha = float(params.get("alpha_deg", 0.0))
-    kwargs = dict(params)
-    kwargs["material"] = build_material(doc.get("material"), alpha, plane_strain=case in ("footing", "biaxial"),
-                                        base=p.parent)
-    if "out" in doc and "out" in allowed:
-        kwargs["out"] = doc["out"]
-    if "solver" in doc:
-        from femgran.cases.common import solver_options
-
-        kwargs["solver"] = solver_options(_table(doc, "solver"), where=f"[solver] of {p.name}")
-    return case, kwargs
+    where = f"case file {p.name}"
+    if isinstance(doc.get("case"), str):
+        doc = _legacy(doc, where)
+    _check_keys(where, doc, _TABLES)
+    fields = _table(doc, "case", where)
+    name = fields.pop("name", None)
+    types = case_types()
+    if name not in types:
+        raise ValueError(f"{where}: [case] name = {name!r}; allowed {sorted(types)}")
+    cls = types[name]
+    _check_keys(f"[case] of {p.name} (case {name!r})", fields, _fields(cls))
+    if fields.get("mesh") is not None:
+        mp = Path(fields["mesh"])
+        fields["mesh"] = str(mp if mp.is_absolute() or mp.exists() else p.parent / mp)
+        if not Path(fields["mesh"]).is_file():
+            raise FileNotFoundError(f"[case] mesh = {str(mp)!r}: file not found")
+    case = cls(**fields)
+    material = build_material(doc.get("material"), getattr(case, "alpha_deg", 0.0), cls.plane_strain, base=p.parent)
+    solver = solver_options(_table(doc, "solver", where), where=f"[solver] of {p.name}")
+    output_fields = _table(doc, "output", where)
+    _check_keys(f"[output] of {p.name}", output_fields, _fields(Output))
+    return case, material, solver, Output(**output_fields)
 
 
-def run_case(path, **overrides):
-    """Run the case of a case file (``overrides`` replace its parameters)."""
-    case, kwargs = load_case(path)
-    func = _case_function(case)
-    accepted = inspect.signature(func).parameters
-    kwargs.update({k: v for k, v in overrides.items() if k in accepted})
-    sol = func(**kwargs)
-    out = kwargs.get("out")
-    if out is not None:
+def run_case(path, **output_overrides):
+    """Run the case of a case file (``output_overrides``: fields of :class:`femgran.cases.base.Output`,
+    e.g. ``progress=True``). The file is copied into the run folder as ``case.toml``."""
+    from femgran.cases.base import run
+
+    case, material, solver, output = load_case(path)
+    if output_overrides:
+        output = dataclasses.replace(output, **output_overrides)
+    sol = run(case, material, solver=solver, output=output)
+    if output.out is not None:
         import shutil
 
-        shutil.copyfile(path, Path(out) / "case.toml")
+        shutil.copyfile(path, Path(output.out) / "case.toml")
     return sol

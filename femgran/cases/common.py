@@ -9,7 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_folder", "material_record", "solver_options", "newton_log", "check_positive", "nodes_near"]
+from material.base import check_positive, check_steps  # noqa: F401  (the cases' validation)
+
+__all__ = ["run_folder", "material_record", "solver_options", "newton_log", "check_positive", "check_steps",
+           "nodes_near", "keep_failed_points"]
 
 
 def keep_failed_points(material, out_dir):
@@ -64,13 +67,6 @@ def newton_log(out_dir):
     from femgran.diagnostics import NewtonLog
 
     return NewtonLog(None if out_dir is None else Path(out_dir) / "newton_log.csv")
-
-
-def check_positive(name: str, value, allow_zero: bool = False) -> float:
-    v = float(value)
-    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} = {value!r}: must be {'>= 0' if allow_zero else '> 0'}")
-    return v
 
 
 def nodes_near(disc, point, tol: float = 1e-9) -> np.ndarray:

@@ -14,30 +14,92 @@ prescribed, axial strain driven) point by point.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import numpy as np
 
-from femgran.cases.common import check_positive, nodes_near, solver_options
-from femgran.solver import Dirichlet, NewtonSolver
-from material.factory import make_material
+from femgran.cases.base import Output, Problem, run
+from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
+from femgran.solver import Dirichlet
 
-__all__ = ["element"]
+__all__ = ["Element", "element"]
 
 _PATHS = ("triaxial",)
 
 
-def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
-            axial_strain: float = 0.01, steps: int = 50, tol: float | None = None, solver=None):
-    """Drained triaxial compression of one hexahedral element.
+@dataclass(frozen=True)
+class Element:
+    """Drained triaxial compression of one hexahedral element (module docstring); validated when made.
 
-    Parameters
-    ----------
-    material : material object, CPAParameters, preset name or None (default CPA ``ottawa_c109``
-        with axes for ``alpha_deg``).
     path : "triaxial" (the only homogeneous path implemented through the FE solver).
     p0_kPa : cell pressure [kPa], > 0; alpha_deg : deposition angle from z [deg];
     axial_strain : final axial strain (compression +) [-]; steps : equal strain steps (no regrowth).
+    """
+
+    name: ClassVar[str] = "element"
+    plane_strain: ClassVar[bool] = False
+
+    path: str = "triaxial"
+    p0_kPa: float = 100.0
+    alpha_deg: float = 0.0
+    axial_strain: float = 0.01
+    steps: int = 50
+
+    def __post_init__(self):
+        if self.path not in _PATHS:
+            raise ValueError(f"path = {self.path!r}: allowed {_PATHS}")
+        check_positive("p0_kPa", self.p0_kPa)
+        check_positive("axial_strain", self.axial_strain)
+        check_steps(self.steps)
+
+    def build(self, mat) -> Problem:
+        from femgran.assembly import Discretisation
+        from femgran.mesh import box
+
+        p0, ea = float(self.p0_kPa), float(self.axial_strain)
+        mesh = box(1.0, 1.0, 1.0, 1, 1, 1)
+        d = Discretisation(mesh, 1)
+        b = mesh.boundaries
+        bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
+        bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),
+               Dirichlet(d.vector_dofs(top, [2]), -ea, name="top"),
+               Dirichlet(d.vector_dofs(nodes_near(d, (0, 0, 0)), [0, 1]), 0.0),
+               Dirichlet(d.vector_dofs(nodes_near(d, (1, 0, 0)), [1]), 0.0)]
+        lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
+        w = d.dx.ravel()
+
+        def observe(s):
+            sig = np.average(s.points.stress, axis=0, weights=w)
+            eps = np.average(np.asarray(s.points.state["strain"]), axis=0, weights=w)
+            return {"eps_a": -eps[2, 2], "eps_v": -np.trace(eps), "q_kPa": 0.5 * (sig[0, 0] + sig[1, 1]) - sig[2, 2],
+                    "p_kPa": -np.trace(sig) / 3.0, "gamma_xz": 2 * eps[0, 2], "gamma_yz": 2 * eps[1, 2]}
+
+        return Problem(d, mat, bcs, f_fixed=d.pressure_force(lateral, p0), initial_stress=-p0 * np.eye(3),
+                       observe=observe, fixed_steps=True, record={"mesh": "unit cube, one trilinear hexahedron"})
+
+    def summarise(self, sol, problem) -> dict:
+        return {"peak_q_kPa": float(np.nanmax(sol.history["q_kPa"]))}
+
+    def plots(self, sol, out_dir) -> None:
+        from femgran.output import plot_history
+
+        plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png",
+                     xlabel="axial strain [-] (compression +)", ylabel="q [kPa]", title="one element, triaxial")
+        plot_history(sol.history, "eps_a", "eps_v", out_dir / "eps_v.png", xlabel="axial strain [-] (compression +)",
+                     ylabel="volumetric strain [-] (compression +)", title="one element, triaxial")
+
+
+def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
+            axial_strain: float = 0.01, steps: int = 50, tol: float | None = None, solver=None, out=None,
+            progress: bool = False, write_every: int = 1, plots: bool = True):
+    """Drained triaxial compression of one hexahedral element.
+
+    ``run(Element(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
+    the arguments as in :class:`Element`; material: material object, CPAParameters, preset name,
+    parameter file or None (CPA ``ottawa_c109`` with axes for ``alpha_deg``).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
-        ``tol`` replaces its tolerance when given.
+    ``tol`` replaces its tolerance when given.
 
     Returns
     -------
@@ -45,32 +107,5 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
     (axial minus mean lateral stress, compression +), ``p_kPa`` and the shear strains ``gamma_xz``,
     ``gamma_yz`` (engineering, tension-positive convention).
     """
-    from femgran.mesh import box
-    from femgran.assembly import Discretisation
-
-    if path not in _PATHS:
-        raise ValueError(f"path = {path!r}: allowed {_PATHS}")
-    p0 = check_positive("p0_kPa", p0_kPa)
-    ea = check_positive("axial_strain", axial_strain)
-    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=False)
-    mesh = box(1.0, 1.0, 1.0, 1, 1, 1)
-    d = Discretisation(mesh, 1)
-    b = mesh.boundaries
-    bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
-    bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),
-           Dirichlet(d.vector_dofs(top, [2]), -ea, name="top"),
-           Dirichlet(d.vector_dofs(nodes_near(d, (0, 0, 0)), [0, 1]), 0.0),
-           Dirichlet(d.vector_dofs(nodes_near(d, (1, 0, 0)), [1]), 0.0)]
-    lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
-    f_cell = d.pressure_force(lateral, p0)
-    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(solver, tol=tol))
-
-    def observe(s):
-        sig = np.average(s.points.stress, axis=0, weights=d.dx.ravel())
-        eps = np.average(np.asarray(s.points.state["strain"]), axis=0, weights=d.dx.ravel())
-        return {"eps_a": -eps[2, 2], "eps_v": -np.trace(eps), "q_kPa": 0.5 * (sig[0, 0] + sig[1, 1]) - sig[2, 2],
-                "p_kPa": -np.trace(sig) / 3.0, "gamma_xz": 2 * eps[0, 2], "gamma_yz": 2 * eps[1, 2]}
-
-    sol = newton.run(steps, observers=[observe], fixed_steps=True)
-    return sol
+    case = Element(path, p0_kPa, float(alpha_deg), axial_strain, steps)
+    return run(case, material, solver=solver_options(solver, tol=tol), output=Output(out, progress, write_every, plots))

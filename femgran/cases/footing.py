@@ -23,16 +23,17 @@ linear response).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
-                                  run_folder, solver_options)
-from femgran.solver import Dirichlet, NewtonSolver
-from material.factory import make_material
+from femgran.cases.base import Output, Problem, run
+from femgran.cases.common import check_positive, check_steps, solver_options
+from femgran.solver import Dirichlet
 
-__all__ = ["footing", "footing_mesh", "prandtl_pressure"]
+__all__ = ["Footing", "footing", "footing_mesh", "prandtl_pressure"]
 
 
 def prandtl_pressure(c_u_kPa: float) -> float:
@@ -67,6 +68,110 @@ def footing_mesh(width_m: float = 1.0, *, extent: float = 4.0, depth: float = 3.
     return rectangle(x, y, kind=kind)
 
 
+@dataclass(frozen=True)
+class Footing:
+    """A rigid strip footing on a layer of soil (module docstring); validated when made.
+
+    width_m : footing width B [m]; unit_weight : gamma [kN/m^3] (0: weightless); surcharge_kPa : q_s [kPa].
+    rough : rough (no slip) or smooth footing; alpha_deg : bedding angle (e2 from vertical) [deg].
+    settlement_m : final settlement (None: 0.1 B); steps : nominal load steps.
+    K0 : earth pressure coefficient at rest of the in-situ stress.
+    mesh : None (:func:`footing_mesh` with ``resolution``, ``extent``, ``depth``) or a mesh file path
+        (2D, surface at y = 0, footing centred at x = 0).
+    order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
+    volumetric : "bbar" (projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking) or
+        "standard" (see :class:`femgran.assembly.Discretisation`).
+    """
+
+    name: ClassVar[str] = "footing"
+    plane_strain: ClassVar[bool] = True
+
+    width_m: float = 1.0
+    unit_weight: float = 18.0
+    surcharge_kPa: float = 0.0
+    rough: bool = True
+    alpha_deg: float = 0.0
+    settlement_m: float | None = None
+    steps: int = 40
+    K0: float = 0.5
+    mesh: str | None = None
+    resolution: int = 3
+    order: int = 2
+    extent: float = 4.0
+    depth: float = 3.0
+    volumetric: str = "bbar"
+
+    def __post_init__(self):
+        check_positive("width_m", self.width_m)
+        check_positive("unit_weight", self.unit_weight, allow_zero=True)
+        check_positive("surcharge_kPa", self.surcharge_kPa, allow_zero=True)
+        check_positive("K0", self.K0)
+        if self.settlement_m is not None:
+            check_positive("settlement_m", self.settlement_m)
+        check_steps(self.steps)
+        if self.order not in (1, 2):
+            raise ValueError(f"order = {self.order!r}: allowed 1 or 2")
+        if self.volumetric not in ("bbar", "standard"):
+            raise ValueError(f"volumetric = {self.volumetric!r}: allowed 'bbar' or 'standard'")
+        if self.mesh is None and int(self.resolution) < 1:
+            raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
+
+    def build(self, mat) -> Problem:
+        from femgran.assembly import Discretisation
+        from femgran.mesh import load_mesh
+
+        B, gamma, qs, K0 = float(self.width_m), float(self.unit_weight), float(self.surcharge_kPa), float(self.K0)
+        settle = 0.1 * B if self.settlement_m is None else float(self.settlement_m)
+        m = (footing_mesh(B, extent=self.extent, depth=self.depth, resolution=self.resolution) if self.mesh is None
+             else load_mesh(self.mesh))
+        if m.dim() != 2:
+            raise ValueError(f"mesh {self.mesh!r}: the footing is plane strain; a 2D mesh is required")
+        if abs(m.p[1].max()) > 1e-9 * B or m.p[0].min() >= -B / 2 or m.p[0].max() <= B / 2:
+            raise ValueError(f"mesh {self.mesh!r}: the surface must be y = 0 and the domain must contain |x| <= B/2")
+        d = Discretisation(m, self.order, self.volumetric if type(m).__name__ == "MeshQuad1" else "standard")
+        b = m.boundaries
+        top_facets = b["top"]
+        fx = m.p[0, m.facets[:, top_facets]].mean(axis=0)
+        under = top_facets[np.abs(fx) < B / 2 - 1e-9 * B]
+        beside = top_facets[np.abs(fx) > B / 2 - 1e-9 * B]
+        foot = d.facet_scalar_dofs(under)
+        if foot.size == 0:
+            raise ValueError("footing: no mesh facet under the footing; refine the mesh")
+        bcs = [Dirichlet(d.vector_dofs(d.facet_scalar_dofs(b["bottom"])), 0.0, name="base"),
+               Dirichlet(d.vector_dofs(d.facet_scalar_dofs(np.concatenate([b["left"], b["right"]])), [0]), 0.0),
+               Dirichlet(d.vector_dofs(foot, [1]), -settle, name="footing")]
+        if self.rough:
+            bcs.append(Dirichlet(d.vector_dofs(foot, [0]), 0.0))
+        f_fixed = np.zeros(d.ndofs)
+        if gamma > 0:
+            f_fixed += d.body_force(np.array([0.0, -gamma]))
+        if qs > 0 and beside.size:
+            f_fixed += d.pressure_force(beside, qs)
+        sigma0 = None
+        if gamma > 0 or qs > 0:
+            sv = -(gamma * np.abs(d.quadrature_points()[:, 1]) + qs)
+            sigma0 = np.zeros((d.n_points, 3, 3))
+            sigma0[:, 1, 1] = sv
+            sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
+        fy_dofs = bcs[2].dofs
+
+        def observe(s):
+            return {"settlement_m": -float(np.mean(s.u[fy_dofs])),
+                    "pressure_kPa": -float(np.sum(s.reaction[fy_dofs])) / B}
+
+        mesh_name = str(self.mesh) if self.mesh else \
+            f"footing_mesh(resolution={self.resolution}, extent={self.extent}, depth={self.depth})"
+        return Problem(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0, observe=observe,
+                       record={"settlement_m": settle, "mesh": mesh_name, "volumetric": d.volumetric,
+                               "vertical_axis": "y (up)"})
+
+    def summarise(self, sol, problem) -> dict:
+        return _capacity(sol.history, float(self.width_m))
+
+    def plots(self, sol, out_dir: Path) -> None:
+        _plots(sol, out_dir)
+
+
 def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surcharge_kPa: float = 0.0,
             rough: bool = True, alpha_deg: float = 0.0, *, settlement_m: float | None = None, steps: int = 40,
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
@@ -75,98 +180,22 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             solver=None):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
-    Parameters
-    ----------
-    material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
-    width_m : footing width B [m]; unit_weight : gamma [kN/m^3] (0: weightless); surcharge_kPa : q_s [kPa].
-    rough : rough (no slip) or smooth footing; alpha_deg : bedding angle (e2 from vertical) [deg].
-    settlement_m : final settlement (default 0.1 B); steps : nominal load steps.
-    K0 : earth pressure coefficient at rest of the in-situ stress.
-    mesh : None (:func:`footing_mesh` with ``resolution``, ``extent``, ``depth``) or a mesh file path
-        (2D, surface at y = 0, footing centred at x = 0).
-    order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
-    volumetric : "bbar" (default: projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking)
-        or "standard" (see :class:`femgran.assembly.Discretisation`).
+    ``run(Footing(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
+    the arguments as in :class:`Footing`; material: material object, CPAParameters, preset name,
+    parameter file or None (CPA ``ottawa_c109``, :func:`material.factory.make_material`).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
-        ``tol`` (relative residual tolerance, out-of-balance force / reaction) and ``linear_solver``
-        replace the corresponding fields when given.
+    ``tol`` (relative residual tolerance, out-of-balance force / reaction) and ``linear_solver`` replace
+    the corresponding fields when given.
 
     Returns
     -------
-    femgran.solver.Solution with ``bearing_capacity_kPa`` and history columns ``settlement_m``,
-    ``pressure_kPa``.
+    femgran.solver.Solution with ``bearing_capacity_kPa``, ``pressure_at_10pct_kPa``, ``plateau_ratio``
+    and history columns ``settlement_m``, ``pressure_kPa``.
     """
-    from femgran.assembly import Discretisation
-    from femgran.mesh import load_mesh
-
-    B = check_positive("width_m", width_m)
-    gamma = check_positive("unit_weight", unit_weight, allow_zero=True)
-    qs = check_positive("surcharge_kPa", surcharge_kPa, allow_zero=True)
-    K0 = check_positive("K0", K0)
-    settle = 0.1 * B if settlement_m is None else check_positive("settlement_m", settlement_m)
-    m = footing_mesh(B, extent=extent, depth=depth, resolution=resolution) if mesh is None else load_mesh(mesh)
-    if m.dim() != 2:
-        raise ValueError(f"mesh {mesh!r}: the footing is plane strain; a 2D mesh is required")
-    if abs(m.p[1].max()) > 1e-9 * B or m.p[0].min() >= -B / 2 or m.p[0].max() <= B / 2:
-        raise ValueError(f"mesh {mesh!r}: the surface must be y = 0 and the domain must contain |x| <= B/2")
-    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=True)
-    d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshQuad1" else "standard")
-    b = m.boundaries
-    eps_x = 1e-9 * B
-    top_facets = b["top"]
-    fx = m.p[0, m.facets[:, top_facets]].mean(axis=0)
-    under = top_facets[np.abs(fx) < B / 2 - eps_x]
-    beside = top_facets[np.abs(fx) > B / 2 - eps_x]
-    foot = d.facet_scalar_dofs(under)
-    if foot.size == 0:
-        raise ValueError("footing: no mesh facet under the footing; refine the mesh")
-    bcs = [Dirichlet(d.vector_dofs(d.facet_scalar_dofs(b["bottom"])), 0.0, name="base"),
-           Dirichlet(d.vector_dofs(d.facet_scalar_dofs(np.concatenate([b["left"], b["right"]])), [0]), 0.0),
-           Dirichlet(d.vector_dofs(foot, [1]), -settle, name="footing")]
-    if rough:
-        bcs.append(Dirichlet(d.vector_dofs(foot, [0]), 0.0))
-    f_fixed = np.zeros(d.ndofs)
-    if gamma > 0:
-        f_fixed += d.body_force(np.array([0.0, -gamma]))
-    if qs > 0 and beside.size:
-        f_fixed += d.pressure_force(beside, qs)
-    xq = d.quadrature_points()
-    sv = -(gamma * np.abs(xq[:, 1]) + qs)
-    sigma0 = np.zeros((d.n_points, 3, 3))
-    sigma0[:, 1, 1] = sv
-    sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
-    out_dir = run_folder(out)
-    mat = keep_failed_points(mat, out_dir)
-    newton = NewtonSolver(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0 if (gamma > 0 or qs > 0) else None,
-                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
-    fy_dofs = bcs[2].dofs
-
-    def observe(s):
-        r = d.internal_force(s.points.stress) - s.external(s.t)
-        return {"settlement_m": -float(np.mean(s.u[fy_dofs])), "pressure_kPa": -float(np.sum(r[fy_dofs])) / B}
-
-    writer = None
-    params = {"case": "footing", "width_m": B, "unit_weight": gamma, "surcharge_kPa": qs, "rough": bool(rough),
-              "alpha_deg": float(alpha_deg), "settlement_m": settle, "steps": int(steps), "K0": K0,
-              "mesh": str(mesh) if mesh else f"footing_mesh(resolution={resolution}, extent={extent}, depth={depth})",
-              "order": int(order), "volumetric": d.volumetric, "solver": newton.options.to_dict(),
-              "material": material_record(mat),
-              "ndofs": d.ndofs, "vertical_axis": "y (up)"}
-    if out_dir is not None:
-        from femgran.output import SeriesWriter, write_parameters
-
-        write_parameters(out_dir / "parameters.json", params)
-        writer = SeriesWriter(out_dir, d, name="footing", every=write_every)
-    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
-    sol.extra.update(params=params, **_capacity(sol.history, B))
-    if out_dir is not None:
-        from femgran.output import write_parameters
-
-        write_parameters(out_dir / "summary.json", {k: sol.extra[k] for k in
-                                                    ("bearing_capacity_kPa", "pressure_at_10pct_kPa", "plateau_ratio")})
-    if out_dir is not None and plots:
-        _plots(sol, out_dir)
-    return sol
+    case = Footing(width_m, unit_weight, surcharge_kPa, bool(rough), float(alpha_deg), settlement_m, steps, K0,
+                   None if mesh is None else str(mesh), resolution, order, extent, depth, volumetric)
+    return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
+               output=Output(out, progress, write_every, plots))
 
 
 def _capacity(history, B: float) -> dict:

@@ -27,16 +27,17 @@ over the specimen; 0 for a uniform field), ``cv_sigma_zz`` (same for the axial s
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.common import (check_positive, keep_failed_points, material_record, newton_log,
-                                  nodes_near, run_folder, solver_options)
-from femgran.solver import Dirichlet, NewtonSolver
-from material.factory import make_material
+from femgran.cases.base import Output, Problem, run
+from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
+from femgran.solver import Dirichlet
 
-__all__ = ["triaxial", "PLATENS"]
+__all__ = ["Triaxial", "triaxial", "PLATENS"]
 
 PLATENS = ("rough", "smooth", "frictional")
 WIDTH, HEIGHT = 0.05, 0.1
@@ -48,18 +49,11 @@ def _weighted_cv(values, weights):
     return float(s / abs(m)) if abs(m) > 0 else 0.0
 
 
-def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
-             axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
-             out=None, progress: bool = False, linear_solver: str | None = None, write_every: int = 1,
-             plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
-             interface_thickness_m: float = 0.001, tol: float | None = None, solver=None):
-    """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
+@dataclass(frozen=True)
+class Triaxial:
+    """The drained triaxial specimen between rigid platens (module docstring); validated when made.
 
-    Parameters
-    ----------
-    material : material object, CPAParameters, preset name, or None (CPA ``ottawa_c109``).
-    p0_kPa : cell pressure [kPa], > 0.
-    alpha_deg : deposition angle between z and e2 [deg].
+    p0_kPa : cell pressure [kPa], > 0; alpha_deg : deposition angle between z and e2 [deg].
     platens : "rough", "smooth" or "frictional" (thin frictional layer, coefficient ``friction``).
     friction : platen friction coefficient mu (``platens="frictional"``), > 0.
     interface_thickness_m : thickness of the frictional layer [m].
@@ -68,107 +62,129 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
         of a mesh file meshio reads (must fill the box [0, 0.05]^2 x [0, 0.1] m).
     order : 1 (linear) or 2 (quadratic) elements.
     volumetric : "standard" or "bbar" (hexahedra only; see :class:`femgran.assembly.Discretisation`).
-    out : run folder (None: no files).
-    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
-        ``tol`` and ``linear_solver`` (:data:`femgran.solver.LINEAR_SOLVERS`) replace those fields when given.
-
-    Returns
-    -------
-    femgran.solver.Solution (``history``, ``out_dir``, ``u``, ``stress``, ``state``).
     """
-    from femgran.assembly import Discretisation
-    from femgran.mesh import box, load_mesh
 
-    if platens not in PLATENS:
-        raise ValueError(f"platens = {platens!r}: allowed {PLATENS}")
-    p0 = check_positive("p0_kPa", p0_kPa)
-    ea = check_positive("axial_strain", axial_strain)
-    n = int(resolution)
-    if platens == "frictional":
-        mu = check_positive("friction", friction)
-        ti = check_positive("interface_thickness_m", interface_thickness_m)
-        if mesh is not None:
-            raise ValueError("platens = 'frictional': only with the built-in mesh (mesh=None)")
-        if not ti < HEIGHT / (4 * max(n, 1)):
-            raise ValueError(f"interface_thickness_m = {ti}: must be < a quarter of the element height "
-                             f"{HEIGHT / (2 * max(n, 1))} m")
-    if mesh is None:
-        if n < 1:
-            raise ValueError(f"resolution = {resolution!r}: must be >= 1")
-        if platens == "frictional":
+    name: ClassVar[str] = "triaxial"
+    plane_strain: ClassVar[bool] = False
+
+    p0_kPa: float = 100.0
+    alpha_deg: float = 0.0
+    platens: str = "rough"
+    axial_strain: float = 0.05
+    steps: int = 25
+    mesh: str | None = None
+    resolution: int = 4
+    order: int = 1
+    volumetric: str = "standard"
+    friction: float = 0.3
+    interface_thickness_m: float = 0.001
+
+    def __post_init__(self):
+        if self.platens not in PLATENS:
+            raise ValueError(f"platens = {self.platens!r}: allowed {PLATENS}")
+        check_positive("p0_kPa", self.p0_kPa)
+        check_positive("axial_strain", self.axial_strain)
+        check_steps(self.steps)
+        n = int(self.resolution)
+        if self.mesh is None and n < 1:
+            raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
+        if self.platens == "frictional":
+            check_positive("friction", self.friction)
+            ti = check_positive("interface_thickness_m", self.interface_thickness_m)
+            if self.mesh is not None:
+                raise ValueError("platens = 'frictional': only with the built-in mesh (mesh=None)")
+            if not ti < HEIGHT / (4 * max(n, 1)):
+                raise ValueError(f"interface_thickness_m = {ti}: must be < a quarter of the element height "
+                                 f"{HEIGHT / (2 * max(n, 1))} m")
+
+    def build(self, mat) -> Problem:
+        from femgran.assembly import Discretisation
+        from femgran.mesh import box, load_mesh
+
+        p0, ea, n = float(self.p0_kPa), float(self.axial_strain), int(self.resolution)
+        ti = float(self.interface_thickness_m)
+        if self.mesh is None and self.platens == "frictional":
             import skfem
+
             from femgran.mesh import name_box_boundaries
 
             z = np.concatenate([[0.0], np.linspace(ti, HEIGHT - ti, 2 * n + 1), [HEIGHT]])
             xs = np.linspace(0.0, WIDTH, n + 1)
             m = name_box_boundaries(skfem.MeshHex.init_tensor(xs, xs, z))
-        else:
+        elif self.mesh is None:
             m = box(WIDTH, WIDTH, HEIGHT, n, n, 2 * n)
-    else:
-        m = load_mesh(mesh)
-        lo, hi = m.p.min(axis=1), m.p.max(axis=1)
-        if m.dim() != 3 or not (np.allclose(lo, 0, atol=1e-6) and np.allclose(hi, [WIDTH, WIDTH, HEIGHT], atol=1e-6)):
-            raise ValueError(f"mesh {mesh!r}: must be 3D and fill [0, {WIDTH}] x [0, {WIDTH}] x [0, {HEIGHT}] m; "
-                             f"got bounds {lo} .. {hi}")
-    mat = make_material(material, alpha_deg=alpha_deg, plane_strain=False)
-    d = Discretisation(m, order, volumetric if type(m).__name__ == "MeshHex1" else "standard")
-    if platens == "frictional":
-        mat = _with_interface_layers(mat, d, mu, ti)
-    b = m.boundaries
-    bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
-    bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),
-           Dirichlet(d.vector_dofs(top, [2]), -ea * HEIGHT, name="top")]
-    if platens in ("rough", "frictional"):
-        bcs += [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0), Dirichlet(d.vector_dofs(top, [0, 1]), 0.0)]
-    else:
-        bcs += [Dirichlet(d.vector_dofs(nodes_near(d, (0, 0, 0)), [0, 1]), 0.0),
-                Dirichlet(d.vector_dofs(nodes_near(d, (WIDTH, 0, 0)), [1]), 0.0)]
-    lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
-    f_cell = d.pressure_force(lateral, p0)
-    out_dir = run_folder(out)
-    mat = keep_failed_points(mat, out_dir)
-    newton = NewtonSolver(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3),
-                          options=solver_options(solver, linear_solver=linear_solver, tol=tol), log=newton_log(out_dir))
-    area = WIDTH * WIDTH
-    top_x, bot_x = d.vector_dofs(top, [0]), d.vector_dofs(bot, [0])
-    w = d.dx.ravel()
+        else:
+            m = load_mesh(self.mesh)
+            lo, hi = m.p.min(axis=1), m.p.max(axis=1)
+            if m.dim() != 3 or not (np.allclose(lo, 0, atol=1e-6) and np.allclose(hi, [WIDTH, WIDTH, HEIGHT], atol=1e-6)):
+                raise ValueError(f"mesh {self.mesh!r}: must be 3D and fill [0, {WIDTH}] x [0, {WIDTH}] x [0, {HEIGHT}] m; "
+                                 f"got bounds {lo} .. {hi}")
+        d = Discretisation(m, self.order, self.volumetric if type(m).__name__ == "MeshHex1" else "standard")
+        if self.platens == "frictional":
+            mat = _with_interface_layers(mat, d, float(self.friction), ti)
+        b = m.boundaries
+        bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
+        bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),
+               Dirichlet(d.vector_dofs(top, [2]), -ea * HEIGHT, name="top")]
+        if self.platens in ("rough", "frictional"):
+            bcs += [Dirichlet(d.vector_dofs(bot, [0, 1]), 0.0), Dirichlet(d.vector_dofs(top, [0, 1]), 0.0)]
+        else:
+            bcs += [Dirichlet(d.vector_dofs(nodes_near(d, (0, 0, 0)), [0, 1]), 0.0),
+                    Dirichlet(d.vector_dofs(nodes_near(d, (WIDTH, 0, 0)), [1]), 0.0)]
+        lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
+        f_cell = d.pressure_force(lateral, p0)
+        area = WIDTH * WIDTH
+        top_x, bot_x = d.vector_dofs(top, [0]), d.vector_dofs(bot, [0])
+        w = d.dx.ravel()
 
-    def observe(s):
-        r = d.internal_force(s.points.stress) - s.external(s.t)
-        fz = float(np.sum(r[bcs[1].dofs]))
-        sig = s.points.stress
-        eps = np.asarray(s.points.state["strain"])
-        pm = -np.trace(sig, axis1=1, axis2=2) / 3
-        dev = sig + pm[:, None, None] * np.eye(3)
-        qm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
-        return {"eps_a": -float(np.mean(s.u[bcs[1].dofs])) / HEIGHT, "q_kPa": -fz / area - p0,
-                "eps_v": -float(np.average(np.trace(eps, axis1=1, axis2=2), weights=w)),
-                "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
-                "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
+        def observe(s):
+            fz = float(np.sum(s.reaction[bcs[1].dofs]))
+            sig = s.points.stress
+            eps = np.asarray(s.points.state["strain"])
+            pm = -np.trace(sig, axis1=1, axis2=2) / 3
+            dev = sig + pm[:, None, None] * np.eye(3)
+            qm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
+            return {"eps_a": -float(np.mean(s.u[bcs[1].dofs])) / HEIGHT, "q_kPa": -fz / area - p0,
+                    "eps_v": -float(np.average(np.trace(eps, axis1=1, axis2=2), weights=w)),
+                    "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
+                    "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
-    writer = None
-    params = {"case": "triaxial", "p0_kPa": p0, "alpha_deg": float(alpha_deg), "platens": platens,
-              "axial_strain": ea, "steps": int(steps), "mesh": str(mesh) if mesh else f"box {n}x{n}x{2 * n} hex",
-              "order": int(order), "solver": newton.options.to_dict(), "material": material_record(mat),
-              "friction": float(friction) if platens == "frictional" else None,
-              "interface_thickness_m": float(interface_thickness_m) if platens == "frictional" else None,
-              "ndofs": d.ndofs}
-    if out_dir is not None:
-        from femgran.output import SeriesWriter, write_parameters
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe,
+                       record={"mesh": str(self.mesh) if self.mesh else f"box {n}x{n}x{2 * n} hex"})
 
-        write_parameters(out_dir / "parameters.json", params)
-        writer = SeriesWriter(out_dir, d, name="triaxial", every=write_every)
-    sol = newton.run(steps, writer=writer, progress=progress, observers=[observe])
-    sol.extra.update(params=params, peak_q_kPa=float(np.nanmax(sol.history["q_kPa"])))
-    if out_dir is not None and plots:
+    def summarise(self, sol, problem) -> dict:
+        return {"peak_q_kPa": float(np.nanmax(sol.history["q_kPa"]))}
+
+    def plots(self, sol, out_dir: Path) -> None:
         _plots(sol, out_dir)
-    return sol
+
+
+def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
+             axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
+             out=None, progress: bool = False, linear_solver: str | None = None, write_every: int = 1,
+             plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
+             interface_thickness_m: float = 0.001, tol: float | None = None, solver=None):
+    """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
+
+    ``run(Triaxial(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
+    the arguments as in :class:`Triaxial`; material: material object, CPAParameters, preset name,
+    parameter file or None (CPA ``ottawa_c109``, :func:`material.factory.make_material`).
+    solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
+    ``tol`` and ``linear_solver`` (:data:`femgran.solver.LINEAR_SOLVERS`) replace those fields when given.
+
+    Returns
+    -------
+    femgran.solver.Solution (``history``, ``out_dir``, ``u``, ``stress``, ``state``, ``peak_q_kPa``).
+    """
+    case = Triaxial(p0_kPa, float(alpha_deg), platens, axial_strain, steps, None if mesh is None else str(mesh),
+                    resolution, order, volumetric, friction, interface_thickness_m)
+    return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
+               output=Output(out, progress, write_every, plots))
 
 
 def _with_interface_layers(mat, d, mu, ti):
     """Composite material: a frictional Drucker-Prager layer in the elements touching the platens."""
     from material import DruckerPrager
-
     from material.composite import Composite
 
     E = getattr(mat, "E", None) or getattr(getattr(mat, "params", None), "E", None)

@@ -169,6 +169,44 @@ def test_case_file_runs_and_rejects_unknown_keys(tmp_path):
     from femgran.cli import main
 
     case = _write(tmp_path / "f.toml", f"""
+[case]
+name = "footing"
+unit_weight = 0.0
+resolution = 1
+steps = 3
+settlement_m = 0.005
+[material]
+law = "von_mises"
+E_kPa = 30000.0
+nu = 0.3
+yield_stress_kPa = 173.2
+[output]
+out = "{tmp_path / 'run'}"
+plots = false
+""")
+    assert main(["run", str(case), "--no-progress"]) == 0
+    assert (tmp_path / "run" / "footing.pvd").is_file() and (tmp_path / "run" / "history.csv").is_file()
+    assert (tmp_path / "run" / "parameters.json").is_file() and (tmp_path / "run" / "case.toml").is_file()
+    bad = _write(tmp_path / "bad.toml", '[case]\nname = "footing"\nwidth = 1.0\n')
+    with pytest.raises(ValueError, match=r"\[case\] of bad.toml \(case 'footing'\): unknown key.*'width'.*'width_m'"):
+        load_case(bad)
+    assert main(["run", str(bad)]) == 2
+    with pytest.raises(ValueError, match="unknown key.*'colour'"):
+        load_case(_write(tmp_path / "b2.toml", '[case]\nname = "footing"\n[colour]\nred = 1\n'))
+    with pytest.raises(ValueError, match="name = 'dam'"):
+        load_case(_write(tmp_path / "b3.toml", '[case]\nname = "dam"\n'))
+    with pytest.raises(ValueError, match="law = 'tresca'"):
+        load_case(_write(tmp_path / "b4.toml", '[case]\nname = "footing"\n[material]\nlaw = "tresca"\n'))
+    with pytest.raises(ValueError, match="unknown key.*'phi'"):
+        load_case(_write(tmp_path / "b5.toml", '[case]\nname = "footing"\n[material]\nlaw = "von_mises"\nphi = 3\n'))
+    with pytest.raises(ValueError, match=r"\[output\] of b6.toml: unknown key.*'folder'"):
+        load_case(_write(tmp_path / "b6.toml", '[case]\nname = "footing"\n[output]\nfolder = "x"\n'))
+    with pytest.raises(ValueError, match="resolution = 0: must be >= 1"):
+        load_case(_write(tmp_path / "b7.toml", '[case]\nname = "footing"\nresolution = 0\n'))
+
+
+def test_case_file_of_the_earlier_layout_is_still_read(tmp_path):
+    legacy = _write(tmp_path / "old.toml", f"""
 case = "footing"
 out = "{tmp_path / 'run'}"
 [material]
@@ -179,25 +217,16 @@ yield_stress_kPa = 173.2
 [parameters]
 unit_weight = 0.0
 resolution = 1
-steps = 3
-settlement_m = 0.005
+steps = 2
+settlement_m = 0.002
 plots = false
+tol = 1e-7
 """)
-    assert main(["run", str(case), "--no-progress"]) == 0
-    assert (tmp_path / "run" / "footing.pvd").is_file() and (tmp_path / "run" / "history.csv").is_file()
-    assert (tmp_path / "run" / "parameters.json").is_file() and (tmp_path / "run" / "case.toml").is_file()
-    bad = _write(tmp_path / "bad.toml", 'case = "footing"\n[parameters]\nwidth = 1.0\n')
-    with pytest.raises(ValueError, match="unknown key.*'width'"):
-        load_case(bad)
-    assert main(["run", str(bad)]) == 2
+    case, mat, solver, output = load_case(legacy)
+    assert (case.name, case.resolution, solver.tol, output.plots) == ("footing", 1, 1e-7, False)
+    assert str(output.out) == str(tmp_path / "run") and type(mat).__name__ == "VonMises"
     with pytest.raises(ValueError, match="unknown key.*'colour'"):
         load_case(_write(tmp_path / "b2.toml", 'case = "footing"\ncolour = 1\n'))
-    with pytest.raises(ValueError, match="case = 'dam'"):
-        load_case(_write(tmp_path / "b3.toml", 'case = "dam"\n'))
-    with pytest.raises(ValueError, match="law = 'tresca'"):
-        load_case(_write(tmp_path / "b4.toml", 'case = "footing"\n[material]\nlaw = "tresca"\n'))
-    with pytest.raises(ValueError, match="unknown key.*'phi'"):
-        load_case(_write(tmp_path / "b5.toml", 'case = "footing"\n[material]\nlaw = "von_mises"\nphi = 3\n'))
 
 
 def test_bad_mesh_files(tmp_path):
