@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from material.commandline import add_out, add_progress, write_run_record
 
 def register(subparsers) -> None:
     """Add the DEM subcommands to the ``femgran`` parser."""
@@ -24,8 +25,8 @@ def register(subparsers) -> None:
     g.add_argument("--height-mm", type=float, default=None)
     g.add_argument("--test", default="T05", help="Table 4 test whose contact law to use (default T05)")
     g.add_argument("--p-kpa", type=float, default=100.0, help="isotropic pressure; 0 = stop after generation")
-    g.add_argument("--out", type=Path, default=Path("out/dem/sample.npz"))
-    g.add_argument("--progress", action="store_true")
+    add_out(g, "out/dem/sample.npz", help="sample file (.npz; default out/dem/sample.npz)")
+    add_progress(g)
     g.set_defaults(func=_generate)
 
     b = sub.add_parser("biaxial", help="biaxial compression at constant lateral stress")
@@ -54,7 +55,8 @@ def register(subparsers) -> None:
     f.set_defaults(func=_fabric)
 
     s = sub.add_parser("sweep", help="Table 4 (N1-N3, T01-T07): runs, CSVs, Figs. 23-34 and 38-44, calibration")
-    s.add_argument("--out", type=Path, default=Path("out/dem/sweep"))
+    add_out(s, "out/dem/sweep")
+    add_progress(s)
     s.add_argument("--tests", default=None, help="comma-separated ids (default: all of Table 4)")
     s.add_argument("--full", action="store_true", help="the thesis's particle numbers (slow)")
     s.add_argument("--scale", type=float, default=0.1, help="fraction of the thesis's N when not --full")
@@ -68,17 +70,17 @@ def register(subparsers) -> None:
                               description="Calibrate the induced-anisotropy constants from DEM run folders and "
                                           "write a parameter file that material.load_parameters reads.")
     c.add_argument("runs", nargs="+", type=Path, help="run folders (biaxial/, rotation/ or a Table 4 test folder)")
-    c.add_argument("--out", type=Path, default=Path("out/dem/calibrated.toml"))
+    add_out(c, "out/dem/calibrated.toml", help="parameter file written (default out/dem/calibrated.toml)")
     c.add_argument("--measure", default="mil", choices=("mil", "areal_porosity"))
     c.add_argument("--preset", default="ottawa_c109_induced")
     c.set_defaults(func=_calibrate)
 
 
 def _run_options(p, default_out):
-    p.add_argument("--out", type=Path, default=Path(default_out))
+    add_out(p, default_out)
     p.add_argument("--resume", action="store_true", help="continue from out/checkpoint.npz")
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="steps between checkpoints")
-    p.add_argument("--progress", action="store_true", help="progress bar (strain, stress ratio, steps/s)")
+    add_progress(p)
 
 
 def _state_path(path: Path) -> Path:
@@ -96,6 +98,7 @@ def _generate(args) -> int:
     if args.p_kpa > 0:
         state = dem.isotropic_compression(state, p_kPa=args.p_kpa, law=law)
     dem.save(state, args.out)
+    write_run_record(args.out, args, seed=args.seed)
     print(f"{args.out}: {state.n_particles} disks, porosity {dem.porosity(state):.4f}, "
           f"Z {dem.coordination_number(state):.2f}, wall stress {np.diag(dem.stress_from_walls(state)).round(2)} kPa")
     return 0
@@ -107,6 +110,7 @@ def _biaxial(args) -> int:
     run = dem.biaxial(dem.load(args.sample), sigma_lateral_kPa=args.lateral_kpa, axial_strain=args.axial_strain,
                       inertial_number=args.inertial_number, n_records=args.records, out=args.out,
                       checkpoint_every=args.checkpoint_every, resume=args.resume, progress=args.progress)
+    write_run_record(args.out, args)
     print(f"{args.out}: eps_a {run['eps_a'][-1]:.4f}, peak phi_mob {np.nanmax(run['phi_mob_deg']):.1f} deg, "
           f"max inertial number {np.nanmax(run['inertial_number']):.2e}")
     return 0
@@ -118,6 +122,7 @@ def _rotate(args) -> int:
     run = dem.rotate_strain(dem.load(_state_path(args.state)), eps_q=args.eps_q, rotation_deg=args.rotation_deg,
                             increment_deg=args.increment_deg, inertial_number=args.inertial_number, out=args.out,
                             checkpoint_every=args.checkpoint_every, resume=args.resume, progress=args.progress)
+    write_run_record(args.out, args)
     lead = (run["alpha_sigma_deg"] - run["alpha_eps_deg"] + 90) % 180 - 90
     print(f"{args.out}: rotated {args.rotation_deg} deg; mean alpha_sigma - alpha_eps {np.nanmean(lead[1:]):.1f} deg, "
           f"max inertial number {np.nanmax(run['inertial_number']):.2e}")
@@ -152,7 +157,7 @@ def _sweep(args) -> int:
 
     tests = args.tests.split(",") if args.tests else None
     summary = sweep(args.out, tests=tests, full=args.full, scale=args.scale, seed=args.seed, jobs=args.jobs,
-                    axial_strain=args.axial_strain, rotation_deg=args.rotation_deg)
+                    axial_strain=args.axial_strain, rotation_deg=args.rotation_deg, progress=args.progress)
     for s in summary:
         print(json.dumps(s))
     from dem.calibrate import calibrate
@@ -165,6 +170,7 @@ def _sweep(args) -> int:
     path = cal.write(args.out / "calibrated.toml", tests=[s["test"] for s in summary], seed=args.seed)
     print(f"calibration: beta {cal.beta:.4g} (95% {cal.beta_ci95[0]:.3g}..{cal.beta_ci95[1]:.3g}), "
           f"alpha_hat {cal.alpha_hat:.3f}, delta {cal.delta_mean_deg:.2f} +- {cal.delta_std_deg:.2f} deg -> {path}")
+    write_run_record(args.out, args, seed=args.seed, calibration=str(path))
     print(f"figures in {args.out / 'figures'}")
     return 0
 
@@ -183,6 +189,7 @@ def _calibrate(args) -> int:
             runs.append(load_run(folder))
     cal = calibrate(runs, measure=args.measure)
     path = cal.write(args.out, preset=args.preset, runs=[str(r) for r in args.runs])
+    write_run_record(args.out, args)
     print(f"beta = {cal.beta:.4g} (95% {cal.beta_ci95[0]:.3g}..{cal.beta_ci95[1]:.3g}); alpha_hat = {cal.alpha_hat:.3f} "
           f"(signed {cal.alpha_signed:+.3f}); beta_hat = 0 (not identifiable in 2D); delta = "
           f"{cal.delta_mean_deg:.2f} +- {cal.delta_std_deg:.2f} deg over {cal.n_states} states -> {path}")

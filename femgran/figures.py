@@ -8,8 +8,9 @@ the data behind it.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
+
+from material.commandline import add_out, add_progress, write_run_record
 
 
 def register(subparsers) -> None:
@@ -20,23 +21,20 @@ def register(subparsers) -> None:
         help="regenerate the thesis's model figures (PNG + CSV) from element simulations",
         description=__doc__,
     )
-    p.add_argument("--out", default="out/figures", help="output folder (default: out/figures)")
+    add_out(p, "out/figures")
     p.add_argument("--only", nargs="+", metavar="NAME", choices=list(FIGURES),
                    help=f"only these figures; choices: {', '.join(FIGURES)}")
     p.add_argument("--full", action="store_true", help="the thesis's resolution (more load steps; slower)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress(p)
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
     from material.figures import make_figures
-    from material.version import __version__
 
     out = Path(args.out)
-    written = make_figures(out, names=args.only, full=args.full, progress=not args.no_progress)
-    (out / "run.json").write_text(json.dumps(
-        {"command": "figures", "figures": args.only or "all", "full": bool(args.full),
-         "femgran_version": __version__, "files": [p.name for p in written]}, indent=2) + "\n")
+    written = make_figures(out, names=args.only, full=args.full, progress=args.progress)
+    write_run_record(out, args, figures=args.only or "all", files=[p.name for p in written])
     for path in written:
         print(path)
     return 0

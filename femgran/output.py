@@ -221,18 +221,23 @@ def read_pvd(path) -> list[tuple[float, Path]]:
 
 def plot_history(history, x: str, y: str, path, *, xlabel=None, ylabel=None, title=None, reference=None) -> Path:
     """Matplotlib curve y(x) from a history table, saved as PNG. ``reference``: (label, x, y) or list of them."""
+    refs = [] if reference is None else (reference if isinstance(reference, list) else [reference])
+    curves = [("FE", history[x], history[y], "o-")] + [(lab, rx, ry, "--") for lab, rx, ry in refs]
+    return plot_curves(curves, path, xlabel=xlabel or x, ylabel=ylabel or y, title=title)
+
+
+def plot_curves(curves, path, *, xlabel: str, ylabel: str, title=None) -> Path:
+    """Several curves ``(label, x, y, style)`` on one set of axes, saved as PNG."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5, 3.6))
-    ax.plot(history[x], history[y], "o-", ms=3, label="FE")
-    refs = [] if reference is None else (reference if isinstance(reference, list) else [reference])
-    for lab, rx, ry in refs:
-        ax.plot(rx, ry, "--", label=lab)
-    ax.set_xlabel(xlabel or x)
-    ax.set_ylabel(ylabel or y)
+    for label, cx, cy, style in curves:
+        ax.plot(cx, cy, style, ms=3, label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     if title:
         ax.set_title(title)
     ax.grid(alpha=0.3)

@@ -18,10 +18,11 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import sys
 import time
 from pathlib import Path
+
+from material.commandline import add_out, add_parameters, add_progress, parameters_from_args, write_run_record
 
 __all__ = ["register"]
 
@@ -69,15 +70,11 @@ def register(subparsers) -> None:
     tests.required = True
     common = argparse.ArgumentParser(add_help=False)
     g = common.add_argument_group("material and output")
-    g.add_argument("--preset", default=None,
-                   help="parameter preset (default ottawa_c109; ottawa_c109_induced for rotation)")
-    g.add_argument("--params", metavar="FILE", default=None, help="parameter file (TOML/JSON), overrides --preset")
-    g.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
-                   help="override a parameter, e.g. --set beta=5 (repeatable)")
+    add_parameters(g, preset_default=None)  # default ottawa_c109; ottawa_c109_induced for rotation
     g.add_argument("--rule", default="bazant-oh-33", help="plane integration rule (material.planes.available_rules())")
     g.add_argument("--steps", type=int, default=None, help="load steps of the main stage (default: the driver's)")
-    g.add_argument("--out", default="out/element", help="output folder (default out/element)")
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_out(g, "out/element")
+    add_progress(g)
     g.add_argument("--no-plot", action="store_true", help="skip the PNG")
 
     for name, sweeps in _SWEEPS.items():
@@ -116,23 +113,7 @@ def _add_specific(p, name: str) -> None:
 
 
 def _parameters(args):
-    from material.parameters import load_parameters, load_preset
-
-    if args.params:
-        params = load_parameters(args.params)
-    else:
-        params = load_preset(args.preset or ("ottawa_c109_induced" if args.test == "rotation" else "ottawa_c109"))
-    changes = {}
-    for item in args.set:
-        if "=" not in item:
-            raise ValueError(f"--set {item!r}: expected KEY=VALUE, e.g. beta=5")
-        key, value = item.split("=", 1)
-        key = key.strip()
-        try:
-            changes[key] = [float(v) for v in value.split(",")] if key in ("a", "b") else float(value)
-        except ValueError:
-            raise ValueError(f"--set {item!r}: value {value!r} is not a number") from None
-    return params.replace(**changes) if changes else params
+    return parameters_from_args(args, "ottawa_c109_induced" if args.test == "rotation" else "ottawa_c109")
 
 
 def _specific_kwargs(args) -> dict:
@@ -175,7 +156,7 @@ def _run(args) -> int:
             path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
         tag = Path(args.csv).stem
         log = out / f"path_{tag}.steps.csv"
-        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=not args.no_progress, log=log)
+        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=args.progress, log=log)
         res.metadata.update(test="path", path_file=str(args.csv))
         res.to_csv(out / f"path_{tag}.csv")
         log.unlink(missing_ok=True)
@@ -188,7 +169,7 @@ def _run(args) -> int:
             kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
             tag = "_".join(f"{dest}_{v:g}" for (dest, _, _), v in zip(sweeps, combo))
             log = out / f"{stem}_{tag}.steps.csv"  # written step by step; removed once the table is saved
-            res = fn(params, rule=args.rule, progress=not args.no_progress, log=log, **kw, **_specific_kwargs(args))
+            res = fn(params, rule=args.rule, progress=args.progress, log=log, **kw, **_specific_kwargs(args))
             runs.append((tag, kw, res))
             res.to_csv(out / f"{stem}_{tag}.csv")
             log.unlink(missing_ok=True)
@@ -201,18 +182,11 @@ def _run(args) -> int:
         files.append(_plot(runs, out / f"{stem}.png", f"{args.test} ({params.name})").name)
     save_parameters(params, out / "parameters.toml", femgran_version=__version__)
     files.append("parameters.toml")
-    run_info = {
-        "command": "femgran " + " ".join(sys.argv[1:]) if sys.argv and "femgran" in sys.argv[0] else None,
-        "test": args.test,
-        "options": {k: v for k, v in vars(args).items() if k != "func"},
-        "femgran_version": __version__,
-        "seed": None,
-        "deterministic": True,
-        "wall_time_s": round(time.perf_counter() - t0, 3),
-        "runs": [{"tag": tag, "completed": res.completed, "message": res.message, "rows": len(res)} for tag, _, res in runs],
-        "files": files,
-    }
-    (out / "run.json").write_text(json.dumps(run_info, indent=2, default=str) + "\n")
+    write_run_record(out, args, test=args.test, seed=None, deterministic=True,
+                     wall_time_s=round(time.perf_counter() - t0, 3),
+                     runs=[{"tag": tag, "completed": res.completed, "message": res.message, "rows": len(res)}
+                           for tag, _, res in runs],
+                     files=files)
     print(f"femgran element {args.test}: {len(runs)} run(s) -> {out}/ ({', '.join(files)})")
     for tag, _, res in runs:
         print("  " + _summary(tag, res))

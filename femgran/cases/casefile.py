@@ -100,7 +100,9 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
         else:
             params = mlib.load_preset(spec.get("preset", "ottawa_c109"))
         if spec.get("set"):
-            params = params.replace(**spec["set"])
+            from material.commandline import with_changes
+
+            params = with_changes(params, spec["set"])
         return make_material(params, alpha_deg=alpha_deg, plane_strain=plane_strain, rule=spec.get("rule"),
                              stabilisation=spec.get("stabilisation"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
@@ -165,12 +167,17 @@ def load_case(path):
     return case, material, solver, Output(**output_fields)
 
 
-def run_case(path, **output_overrides):
-    """Run the case of a case file (``output_overrides``: fields of :class:`femgran.cases.base.Output`,
-    e.g. ``progress=True``). The file is copied into the run folder as ``case.toml``."""
+def run_case(path, *, solver=None, **output_overrides):
+    """Run the case of a case file. ``solver``: fields of :class:`femgran.solver.SolverOptions` that replace
+    the file's ``[solver]`` values; ``output_overrides``: fields of :class:`femgran.cases.base.Output`, e.g.
+    ``progress=True``. The file is copied into the run folder as ``case.toml``."""
     from femgran.cases.base import run
+    from femgran.cases.common import solver_options
 
-    case, material, solver, output = load_case(path)
+    case, material, file_solver, output = load_case(path)
+    if solver:
+        file_solver = solver_options({**file_solver.to_dict(), **dict(solver)}, where="solver")
+    solver = file_solver
     if output_overrides:
         output = dataclasses.replace(output, **output_overrides)
     sol = run(case, material, solver=solver, output=output)

@@ -19,30 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
+from material.commandline import add_out, add_parameters, add_progress, parse_set, write_run_record
+
 __all__ = ["register"]
-
-
-def _parse_set(items):
-    out = {}
-    for item in items or []:
-        if "=" not in item:
-            raise ValueError(f"--set {item!r}: expected NAME=VALUE")
-        k, v = item.split("=", 1)
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise ValueError(f"--set {item!r}: VALUE must be a number") from None
-    return out
 
 
 def _material(args, alpha, plane_strain):
     from femgran.cases.casefile import build_material
 
     if args.law == "cpa":
-        spec = {"law": "cpa", "preset": args.preset, "set": _parse_set(args.set), "stabilisation": args.stabilisation}
-        if args.parameters:
-            spec = {"law": "cpa", "parameters": args.parameters, "set": _parse_set(args.set),
-                    "stabilisation": args.stabilisation}
+        spec = {"law": "cpa", "set": parse_set(args.set), "stabilisation": args.stabilisation}
+        spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
     elif args.law == "von_mises":
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
     elif args.law == "drucker_prager":
@@ -56,9 +43,7 @@ def _material(args, alpha, plane_strain):
 def _common(p, default_out):
     g = p.add_argument_group("material")
     g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "linear_elastic"], default="cpa")
-    g.add_argument("--preset", default="ottawa_c109", help="CPA preset (default ottawa_c109)")
-    g.add_argument("--parameters", help="CPA parameter file (TOML/JSON) instead of a preset")
-    g.add_argument("--set", action="append", metavar="NAME=VALUE", help="change a CPA parameter (repeatable)")
+    add_parameters(g)
     g.add_argument("--stabilisation", type=float, default=0.0, metavar="MU",
                    help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
                         "carry a footing to its end, docs/cpa_law.md section 4)")
@@ -70,6 +55,12 @@ def _common(p, default_out):
     p.add_argument("--alpha", type=float, nargs="+", default=[0.0], help="deposition angle(s) [deg]")
     p.add_argument("--steps", type=int, default=None, help="nominal number of load steps")
     p.add_argument("--order", type=int, choices=[1, 2], default=None, help="element order")
+    _solver_flags(p)
+    add_out(p, default_out)
+    add_progress(p)
+
+
+def _solver_flags(p):
     s = p.add_argument_group("solver (femgran.solver.SolverOptions; default: its values)")
     s.add_argument("--tol", type=float, default=None, help="relative residual tolerance of the Newton iterations")
     s.add_argument("--max-iter", type=int, default=None, help="Newton iterations per attempt of a step")
@@ -80,18 +71,19 @@ def _common(p, default_out):
                    help="first guess of each step's displacements")
     s.add_argument("--linear-solver", default=None, choices=["auto", "superlu", "amg-gmres", "ilu-gmres"],
                    help="auto: SuperLU for small and plane-strain problems, AMG-GMRES for large 3D ones")
-    p.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 _SOLVER_FLAGS = ("tol", "max_iter", "max_cuts", "line_search", "predictor", "linear_solver")
 
 
+def _solver_given(args) -> dict:
+    return {k: getattr(args, k) for k in _SOLVER_FLAGS if getattr(args, k) is not None}
+
+
 def _kw(args, **extra):
     from femgran.cases.common import solver_options
 
-    given = {k: getattr(args, k) for k in _SOLVER_FLAGS if getattr(args, k) is not None}
-    kw = {"solver": solver_options(given), "progress": not args.no_progress}
+    kw = {"solver": solver_options(_solver_given(args)), "progress": args.progress}
     if args.steps is not None:
         kw["steps"] = args.steps
     if args.order is not None:
@@ -115,8 +107,8 @@ def _sweep(args, func, plane_strain, label, values, key, metric, fixed):
         sols.append((v, sol))
         rows.append((v, metric(sol), sol.completed))
         print(f"{label} = {v:g}: {metric.__doc__} = {metric(sol):.4g}; {sol.stop_reason}; results in {run_dir}")
+    write_run_record(out, args, runs=[{"value": v, "metric": m, "completed": c} for v, m, c in rows])
     if len(values) > 1:
-        out.mkdir(parents=True, exist_ok=True)
         with open(out / "summary.csv", "w") as f:
             f.write(f"{label},{metric.__doc__},completed\n")
             for v, m, c in rows:
@@ -125,21 +117,10 @@ def _sweep(args, func, plane_strain, label, values, key, metric, fixed):
 
 
 def _overlay(sols, x, y, path, label, xlabel, ylabel):
-    import matplotlib
+    from femgran.output import plot_curves
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5, 3.6))
-    for v, s in sols:
-        ax.plot(s.history[x], s.history[y], label=f"{label} = {v:g}")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    plot_curves([(f"{label} = {v:g}", s.history[x], s.history[y], "-") for v, s in sols], path, xlabel=xlabel,
+                ylabel=ylabel)
 
 
 def _triaxial(args):
@@ -155,8 +136,9 @@ def _triaxial(args):
         fixed["mesh"] = args.mesh
     sols = _sweep(args, triaxial, False, "alpha", args.alpha, "alpha_deg", metric, fixed)
     if len(sols) > 1:
-        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a.png", "alpha", "axial strain", "q [kPa]")
-        _overlay(sols, "eps_a", "cv_q", Path(args.out) / "uniformity.png", "alpha", "axial strain", "CV of sqrt(3 J2)")
+        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a.png", "alpha", "axial strain [-]", "q [kPa]")
+        _overlay(sols, "eps_a", "cv_q", Path(args.out) / "uniformity.png", "alpha", "axial strain [-]",
+                 "coefficient of variation of sqrt(3 J2) [-]")
     return 0
 
 
@@ -176,7 +158,7 @@ def _footing(args):
     sols = _sweep(args, footing, True, "alpha", args.alpha, "alpha_deg", metric, fixed)
     if len(sols) > 1:
         _overlay(sols, "settlement_m", "pressure_kPa", Path(args.out) / "load_settlement.png", "alpha",
-                 "settlement [m]", "mean pressure [kPa]")
+                 "settlement [m]", "mean footing pressure [kPa]")
     return 0
 
 
@@ -192,15 +174,16 @@ def _biaxial(args):
                 weak_zone_height=args.weak_zone_height)
     sols = _sweep(args, biaxial, True, "resolution", [int(r) for r in args.resolution], "resolution", metric, fixed)
     if len(sols) > 1:
-        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a_meshes.png", "resolution", "axial strain", "q [kPa]")
+        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a_meshes.png", "resolution", "axial strain [-]", "q [kPa]")
     return 0
 
 
 def _run(args):
     from femgran.cases.casefile import run_case
 
-    over = {} if args.no_progress else {"progress": True}
-    sol = run_case(args.case_file, **over)
+    sol = run_case(args.case_file, progress=args.progress, solver=_solver_given(args))
+    if sol.out_dir is not None:
+        write_run_record(sol.out_dir, args, completed=sol.completed, stop_reason=sol.stop_reason)
     print(f"{sol.stop_reason}; {len(sol.history) - 1} steps; results in {sol.out_dir}")
     return 0 if sol.completed else 1
 
@@ -246,5 +229,6 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
                               description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)
     p.add_argument("case_file", help="case file (TOML)")
-    p.add_argument("--no-progress", action="store_true")
+    _solver_flags(p)
+    add_progress(p)
     p.set_defaults(func=_run)

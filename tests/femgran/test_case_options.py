@@ -71,3 +71,16 @@ def test_a_case_file_passes_the_solver_table(tmp_path):
 def test_bad_solver_options_name_the_key_and_the_allowed_values(bad, match):
     with pytest.raises(ValueError, match=match):
         SolverOptions.resolve(bad)
+
+
+def test_femgran_run_overrides_the_solver_table_of_a_case_file(tmp_path):
+    from femgran.cli import main
+
+    case = tmp_path / "cavity.toml"
+    case.write_text(f'[case]\nname = "cavity"\nsteps = 2\n[material]\nlaw = "von_mises"\nE_kPa = 1e5\nnu = 0.3\n'
+                    f'yield_stress_kPa = 173.2\n[solver]\nmax_iter = 9\n[output]\nout = "{tmp_path / "run"}"\n'
+                    f'plots = false\n')
+    assert main(["run", str(case), "--no-progress", "--tol", "1e-7"]) == 0
+    record = json.loads((tmp_path / "run" / "parameters.json").read_text())["solver"]
+    assert (record["max_iter"], record["tol"]) == (9, 1e-7)
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["completed"] is True

@@ -1,0 +1,51 @@
+"""Every subcommand speaks the same flags (material.commandline): --out, --no-progress, --params/--set, run.json."""
+
+import json
+
+import pytest
+
+from femgran.cli import build_parser, main
+from material import load_parameters
+from material.commandline import parse_set
+
+# every subcommand that writes something, with the positional arguments it needs
+COMMANDS = [["element", "triaxial"], ["element", "path", "x.csv"], ["triaxial"], ["footing"], ["biaxial"],
+            ["run", "case.toml"], ["figures"], ["dem", "generate"], ["dem", "biaxial", "s.npz"],
+            ["dem", "rotate", "s.npz"], ["dem", "sweep"]]
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
+def test_every_subcommand_has_progress_on_by_default_and_no_progress(command):
+    parser = build_parser()
+    assert parser.parse_args(command).progress is True
+    assert parser.parse_args(command + ["--no-progress"]).progress is False
+    if command[0] != "run":
+        assert str(parser.parse_args(command + ["--out", "somewhere"]).out) == "somewhere"
+
+
+@pytest.mark.parametrize("command", [["element", "triaxial"], ["footing"], ["triaxial"], ["biaxial"]], ids=" ".join)
+def test_the_material_flags_are_the_same_everywhere(command):
+    parser = build_parser()
+    for flag in ("--params", "--parameters"):
+        args = parser.parse_args(command + [flag, "sand.toml", "--set", "beta=5", "--set", "a=0.4,0.45,19"])
+        assert args.params == "sand.toml"
+        assert parse_set(args.set) == {"beta": 5.0, "a": [0.4, 0.45, 19.0]}
+
+
+def test_set_with_lists_reaches_the_parameters(tmp_path):
+    out = tmp_path / "el"
+    assert main(["element", "triaxial", "--alpha", "0", "--steps", "5", "--set", "a=0.4,0.45,19", "--set", "b=0.1",
+                 "--no-progress", "--no-plot", "--out", str(out)]) == 0
+    params = load_parameters(out / "parameters.toml")
+    assert params.a == (0.4, 0.45, 19.0) and params.b == (0.1,)
+    assert main(["element", "triaxial", "--set", "beta=five", "--out", str(out)]) == 2
+
+
+def test_run_json_records_the_command_and_the_options(tmp_path):
+    argv = ["footing", "--law", "drucker_prager", "--friction", "30", "--resolution", "1", "--steps", "2",
+            "--settlement", "0.005", "--no-progress", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    record = json.loads((tmp_path / "run.json").read_text())
+    assert record["command"] == "femgran " + " ".join(argv)
+    assert record["options"]["law"] == "drucker_prager" and record["options"]["progress"] is False
+    assert record["runs"][0]["completed"] is True and "femgran_version" in record
