@@ -1,4 +1,4 @@
-"""Quadrature-point layout <-> material batches, and the start/end-of-step material state.
+"""The material state of the quadrature points at the start and the end of a load step.
 
 scikit-fem keeps quadrature-point fields with tensor indices first and ``(nelems, nqp)`` last,
 e.g. a stress field ``(3, 3, nelems, nqp)``. The materials of :mod:`material` work on batches with the
@@ -7,9 +7,8 @@ point index first, ``(N, 3, 3)``. femgran numbers the points element-major::
     point = element * nqp + quadrature_point        (N = nelems * nqp)
 
 so a batch reshaped to ``(nelems, nqp, ...)`` is the (element, point) view the kernels of
-:mod:`femgran.assembly` use. :func:`to_points` and :func:`to_quadrature` convert between the two
-layouts; :class:`PointState` keeps the material state at the start and the end of a load step
-(commit on convergence, revert on cut-back, as MGIS does with s0/s1).
+:mod:`femgran.assembly` use. :class:`PointState` keeps the material state at the start and the end
+of a load step (commit on convergence, revert on cut-back, as MGIS does with s0/s1).
 """
 
 from __future__ import annotations
@@ -18,26 +17,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED, copy_state
 
-__all__ = ["to_points", "to_quadrature", "PointState"]
-
-
-def to_points(field: np.ndarray) -> np.ndarray:
-    """scikit-fem layout ``(*tensor, nelems, nqp)`` -> batch ``(nelems * nqp, *tensor)``."""
-    a = np.asarray(field)
-    if a.ndim < 2:
-        raise ValueError(f"field: expected at least 2 axes (..., nelems, nqp), got shape {a.shape}")
-    nel, nq = a.shape[-2:]
-    a = np.moveaxis(a.reshape(a.shape[:-2] + (nel * nq,)), -1, 0)
-    return np.ascontiguousarray(a)
-
-
-def to_quadrature(batch: np.ndarray, nelems: int, nqp: int) -> np.ndarray:
-    """Batch ``(nelems * nqp, *tensor)`` -> scikit-fem layout ``(*tensor, nelems, nqp)``."""
-    a = np.asarray(batch)
-    if a.shape[:1] != (nelems * nqp,):
-        raise ValueError(f"batch: leading axis {a.shape[:1]} != nelems * nqp = {nelems * nqp}")
-    a = np.moveaxis(a, 0, -1)
-    return a.reshape(a.shape[:-1] + (nelems, nqp))
+__all__ = ["PointState"]
 
 
 class PointState:

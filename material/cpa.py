@@ -55,26 +55,13 @@ from material._cpa_local import Law, Options
 from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
 from material.base import STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.elastic import mandel_elastic
 from material.parameters import CPAParameters, load_preset, parameters_from_dict
+from material.tensors import to_mandel
 
 __all__ = ["CPAModel", "replay", "mandel_elastic"]
 
 _STATE_KEYS = ("strain", "plastic_strain", "kappa")
-
-
-def mandel_elastic(E: float, nu: float) -> tuple[np.ndarray, np.ndarray]:
-    """Isotropic stiffness and compliance as 6x6 Mandel matrices (kPa, 1/kPa)."""
-    K = E / (3.0 * (1.0 - 2.0 * nu))
-    G = E / (2.0 * (1.0 + nu))
-    one = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
-    vol = np.outer(one, one) / 3.0
-    dev = np.eye(6) - vol
-    return 3.0 * K * vol + 2.0 * G * dev, vol / (3.0 * K) + dev / (2.0 * G)
-
-
-def _mandel1(a: np.ndarray) -> np.ndarray:
-    r = np.sqrt(2.0)
-    return np.array([a[0, 0], a[1, 1], a[2, 2], r * a[1, 2], r * a[0, 2], r * a[0, 1]])
 
 
 @dataclass(frozen=True)
@@ -120,6 +107,8 @@ class CPAModel:
         thickness t wide, whatever its size: the unregularised, mesh-dependent reference.
     """
 
+    TANGENTS = ("tensor", "mandel")  # forms of the tangent :meth:`update` returns
+
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
                  maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float = 0.0,
                  replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True):
@@ -149,12 +138,8 @@ class CPAModel:
         normals_ref, weights = integration_rule(rule)
         self.normals = np.ascontiguousarray(normals_ref @ self.axes.T)  # n_a = R n_a^ref
         self.weights = np.ascontiguousarray(weights, dtype=float)
-        n = self.normals
-        r = np.sqrt(2.0)
-        self._nn6 = np.ascontiguousarray(np.column_stack([
-            n[:, 0] ** 2, n[:, 1] ** 2, n[:, 2] ** 2, r * n[:, 1] * n[:, 2], r * n[:, 0] * n[:, 2], r * n[:, 0] * n[:, 1],
-        ]))
-        self._om6 = _mandel1(inherent_tensor(params.omega1, self.axes))
+        self._nn6 = np.ascontiguousarray(to_mandel(np.einsum("ai,aj->aij", self.normals, self.normals)))  # n (x) n
+        self._om6 = to_mandel(inherent_tensor(params.omega1, self.axes))
         self._cohesion = np.ascontiguousarray(cohesion(params, self.normals, self.axes), dtype=float)
         self._coeffs = np.ascontiguousarray(params.a, dtype=float)
         self._stiff, self._comp = mandel_elastic(params.E, params.nu)
@@ -288,7 +273,7 @@ class CPAModel:
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
     # ----------------------------------------------------------------------------- update
-    def update(self, d_strain, stress, state: State, *, tangent: bool = True):
+    def update(self, d_strain, stress, state: State, *, tangent: bool | str = True):
         """Integrate the law over a strain increment at N Gauss points.
 
         Parameters
@@ -296,8 +281,10 @@ class CPAModel:
         d_strain : (N, 3, 3) strain increment, tension positive, symmetric.
         stress : (N, 3, 3) Cauchy stress at the start of the step [kPa], tension positive.
         state : dict from :meth:`initial_state` or a previous :meth:`update` (not modified).
-        tangent : bool
-            Compute the consistent tangent (default). Without it the third return value is None.
+        tangent : bool or "mandel"
+            Compute the consistent tangent (default). Without it the third return value is None;
+            ``"mandel"`` returns it as (N, 6, 6) Mandel matrices, the form the law computes (no
+            conversion: the element drivers work in it, :data:`TANGENTS`).
 
         Returns
         -------
@@ -376,7 +363,7 @@ class CPAModel:
             new_state["element_size"] = state["element_size"]
         if failed.any():
             self._record_failure(de, sig, state, np.flatnonzero(failed))
-        tan = _k.tangent_from_mandel(D) if tangent else None
+        tan = (D if tangent == "mandel" else _k.tangent_from_mandel(D)) if tangent else None
         return new_sig, new_state, tan
 
     # ----------------------------------------------------------------------------- replay

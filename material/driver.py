@@ -44,7 +44,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
-from material.tensors import from_mandel, to_mandel, to_mandel_matrix
+from material.tensors import MANDEL_WEIGHTS, from_mandel, to_mandel, to_mandel_matrix
 
 __all__ = [
     "COMPONENTS",
@@ -65,7 +65,7 @@ __all__ = [
 ]
 
 _IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))  # material.tensors.MANDEL_INDEX
-_W = np.array([1.0, 1.0, 1.0, math.sqrt(2.0), math.sqrt(2.0), math.sqrt(2.0)])
+_W = MANDEL_WEIGHTS
 _DELTA = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 _BACKTRACKS = 3  # halvings of a Newton correction the law could not integrate
 
@@ -380,10 +380,21 @@ class _Point:
     tangent: np.ndarray  # (6, 6) Mandel tangent of the last converged update
 
 
+def _mandel_update(model, d_strain, stress, state):
+    """One update of the point with its tangent as a (6, 6) Mandel matrix: a law that computes it in
+    Mandel form (``"mandel" in model.TANGENTS``, the CPA law) gives it as it is, without a round trip."""
+    if "mandel" in getattr(model, "TANGENTS", ()):
+        stress, state, tangent = model.update(d_strain, stress, state, tangent="mandel")
+        return stress, state, np.asarray(tangent)[0]
+    stress, state, tangent = model.update(d_strain, stress, state)
+    return stress, state, to_mandel_matrix(np.asarray(tangent)[0])
+
+
 def _update(model, point: _Point, d_eps: np.ndarray):
-    stress, state, tangent = model.update(from_mandel(d_eps)[None], from_mandel(point.stress)[None], point.state)
+    stress, state, tangent = _mandel_update(model, from_mandel(d_eps)[None], from_mandel(point.stress)[None],
+                                            point.state)
     failed = int(np.asarray(state["status"])[0]) == STATUS_FAILED
-    return to_mandel(stress[0]), state, to_mandel_matrix(np.asarray(tangent)[0]), failed
+    return to_mandel(stress[0]), state, tangent, failed
 
 
 def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int):
@@ -480,9 +491,9 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
         raise ValueError(f"tolerance = {tolerance!r}: allowed 0 < tolerance < 1e-2")
     s0 = path.initial_stress
     state0 = model.initial_state(1, stress=s0) if state is None else copy_state(state)
-    _, state_probe, tangent0 = model.update(np.zeros((1, 3, 3)), s0[None], state0)
+    _, state_probe, tangent0 = _mandel_update(model, np.zeros((1, 3, 3)), s0[None], state0)
     point = _Point(to_mandel(state0["strain"][0]) if "strain" in state0 else np.zeros(6), to_mandel(s0), 0.0,
-                   state0, to_mandel_matrix(np.asarray(tangent0)[0]))
+                   state0, tangent0)
     strain_ref = point.strain.copy()
 
     rows_s, rows_e, rows_u = [point.stress], [point.strain - strain_ref], [0.0]

@@ -27,6 +27,13 @@ def isotropic_compliance(E: float, nu: float) -> np.ndarray:
     return (1.0 + nu) / E * sym - nu / E * np.einsum("ij,kl->ijkl", d, d)
 
 
+def mandel_elastic(E: float, nu: float) -> tuple[np.ndarray, np.ndarray]:
+    """Isotropic stiffness and compliance as 6x6 Mandel matrices (kPa, 1/kPa), from the tensors above."""
+    from material.tensors import to_mandel_matrix
+
+    return to_mandel_matrix(isotropic_stiffness(E, nu)), to_mandel_matrix(isotropic_compliance(E, nu))
+
+
 def _check_elastic(E: float, nu: float) -> tuple[float, float]:
     E, nu = float(E), float(nu)
     if not (np.isfinite(E) and E > 0):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from material.base import STATUS_OK, State, as_stress_batch, check_batch, check_state
-from material.elastic import _check_elastic
+from material.elastic import _check_elastic, isotropic_stiffness
 
 __all__ = ["VonMises", "DruckerPrager", "von_mises_stress"]
 
@@ -55,7 +55,7 @@ class _Base:
         self.E, self.nu = _check_elastic(E_kPa, nu)
         self.G = self.E / (2.0 * (1.0 + self.nu))
         self.K = self.E / (3.0 * (1.0 - 2.0 * self.nu))
-        self.stiffness = 3.0 * self.K * (_II / 3.0) + 2.0 * self.G * _IDEV
+        self.stiffness = isotropic_stiffness(self.E, self.nu)
 
     def initial_state(self, n_points: int, stress=None, *, element_size=None) -> State:
         """State of ``n_points`` points: zero strain and plastic strain.

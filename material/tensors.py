@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "MANDEL_WEIGHTS",
     "MANDEL_INDEX",
     "VOIGT_INDEX",
     "to_mandel",
@@ -44,7 +45,8 @@ MANDEL_INDEX = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
 VOIGT_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # Abaqus UMAT
 _MI = np.array([p[0] for p in MANDEL_INDEX]), np.array([p[1] for p in MANDEL_INDEX])
 _VI = np.array([p[0] for p in VOIGT_INDEX]), np.array([p[1] for p in VOIGT_INDEX])
-_MW = np.array([1.0, 1.0, 1.0, SQRT2, SQRT2, SQRT2])
+MANDEL_WEIGHTS = np.array([1.0, 1.0, 1.0, SQRT2, SQRT2, SQRT2])  # Mandel value = weight x tensor component
+_MW = MANDEL_WEIGHTS
 _VW_STRAIN = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 
 

@@ -542,3 +542,15 @@ def test_without_softening_the_mobilised_ratio_keeps_rising_past_eta_f():
     for _ in range(240):
         sig, st, _ = model.update(DE_SHEAR[None], sig, st)
     assert 1.0 < st["mobilised_ratio"][0] < 1.05
+
+
+def test_the_mandel_tangent_is_the_tensor_tangent_in_mandel_form():
+    from material.tensors import to_mandel_matrix
+
+    model = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0))
+    state = model.initial_state(2, stress=-100.0 * np.eye(3))
+    d_strain = np.array([np.diag([1e-3, 5e-4, -3e-3]), np.diag([-2e-3, 1e-3, 1e-3])])
+    s_t, _, tensor = model.update(d_strain, np.broadcast_to(-100.0 * np.eye(3), (2, 3, 3)), state)
+    s_m, _, mandel = model.update(d_strain, np.broadcast_to(-100.0 * np.eye(3), (2, 3, 3)), state, tangent="mandel")
+    np.testing.assert_array_equal(s_t, s_m)
+    np.testing.assert_allclose(mandel, to_mandel_matrix(tensor), rtol=1e-13, atol=1e-10)
