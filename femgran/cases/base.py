@@ -7,7 +7,7 @@ computation) with
   the history columns to observe and a record of what was built;
 * ``summarise(solution, problem) -> dict``: the case's results (attributes of the solution and
   ``summary.json``);
-* ``plots(solution, out_dir)``: its figures (optional).
+* ``plots(solution, problem, out_dir)``: its figures (optional).
 
 :func:`run` owns the rest, the same for every case: the material (:func:`material.factory.make_material`,
 with the case's ``alpha_deg`` and frame), the failed-point folder (given to a copy of the law, never set on
@@ -104,5 +104,5 @@ def run(case, material=None, *, solver=None, output: Output | None = None):
         if summary:
             write_parameters(out_dir / "summary.json", summary)
         if output.plots and hasattr(case, "plots"):
-            case.plots(sol, out_dir)
+            case.plots(sol, problem, out_dir)
     return sol

@@ -186,7 +186,7 @@ class Biaxial:
         return dict(band_angle_deg=nan, localised=False, peak_friction_deg=nan, peak_dilatancy_deg=nan,
                     peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
 
-    def plots(self, sol, out_dir: Path) -> None:
+    def plots(self, sol, problem, out_dir: Path) -> None:
         _plots(sol, out_dir)
 
 
@@ -269,10 +269,10 @@ def _regularisation(mat) -> str:
 def _plots(sol, out_dir: Path) -> None:
     from femgran.output import plot_field, plot_history, read_pvd
 
-    plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png", xlabel="axial strain", ylabel="q [kPa]",
-                 title="plane-strain biaxial")
-    plot_history(sol.history, "eps_a", "eps_v", out_dir / "eps_v.png", xlabel="axial strain",
-                 ylabel="volumetric strain (compression +)")
+    plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png", xlabel="axial strain [-] (compression +)",
+                 ylabel="q = s1 - s3 [kPa]", title="plane-strain biaxial")
+    plot_history(sol.history, "eps_a", "eps_v", out_dir / "eps_v.png", xlabel="axial strain [-] (compression +)",
+                 ylabel="volumetric strain [-] (compression +)")
     entries = read_pvd(out_dir / "biaxial.pvd")
     if entries:
         plot_field(entries[-1][1], "q_kPa", out_dir / "field_q.png")

@@ -106,7 +106,7 @@ class Cavity:
     def summarise(self, sol, problem) -> dict:
         return {"final_pressure_kPa": float(sol.history["pressure_kPa"][-1])}
 
-    def plots(self, sol, out_dir) -> None:
+    def plots(self, sol, problem, out_dir) -> None:
         from femgran.output import plot_history
 
         plot_history(sol.history, "expansion", "pressure_kPa", out_dir / "pressure_expansion.png",

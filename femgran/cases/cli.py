@@ -197,7 +197,7 @@ def register(subparsers) -> None:
     p.add_argument("--p0", type=float, default=100.0, help="cell pressure [kPa]")
     p.add_argument("--platens", choices=["rough", "smooth", "frictional"], default="rough")
     p.add_argument("--platen-friction", type=float, default=0.3, help="platen friction coefficient (--platens frictional)")
-    p.add_argument("--axial-strain", type=float, default=0.05)
+    p.add_argument("--axial-strain", type=float, default=0.15, help="final axial strain (default 0.15, the thesis's)")
     p.add_argument("--resolution", type=int, default=4, help="elements across the width")
     p.add_argument("--mesh", help="mesh file (meshio) filling [0,0.05]^2 x [0,0.1] m")
     p.set_defaults(func=_triaxial)

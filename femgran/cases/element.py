@@ -81,7 +81,7 @@ class Element:
     def summarise(self, sol, problem) -> dict:
         return {"peak_q_kPa": float(np.nanmax(sol.history["q_kPa"]))}
 
-    def plots(self, sol, out_dir) -> None:
+    def plots(self, sol, problem, out_dir) -> None:
         from femgran.output import plot_history
 
         plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png",

@@ -168,7 +168,7 @@ class Footing:
     def summarise(self, sol, problem) -> dict:
         return _capacity(sol.history, float(self.width_m))
 
-    def plots(self, sol, out_dir: Path) -> None:
+    def plots(self, sol, problem, out_dir: Path) -> None:
         _plots(sol, out_dir)
 
 

@@ -70,8 +70,8 @@ class Triaxial:
     p0_kPa: float = 100.0
     alpha_deg: float = 0.0
     platens: str = "rough"
-    axial_strain: float = 0.05
-    steps: int = 25
+    axial_strain: float = 0.15
+    steps: int = 60
     mesh: str | None = None
     resolution: int = 4
     order: int = 1
@@ -120,6 +120,7 @@ class Triaxial:
                 raise ValueError(f"mesh {self.mesh!r}: must be 3D and fill [0, {WIDTH}] x [0, {WIDTH}] x [0, {HEIGHT}] m; "
                                  f"got bounds {lo} .. {hi}")
         d = Discretisation(m, self.order, self.volumetric if type(m).__name__ == "MeshHex1" else "standard")
+        soil = mat
         if self.platens == "frictional":
             mat = _with_interface_layers(mat, d, float(self.friction), ti)
         b = m.boundaries
@@ -150,17 +151,32 @@ class Triaxial:
                     "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
         return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe,
-                       record={"mesh": str(self.mesh) if self.mesh else f"box {n}x{n}x{2 * n} hex"})
+                       record={"mesh": str(self.mesh) if self.mesh else f"box {n}x{n}x{2 * n} hex"},
+                       data={"soil": soil})
 
     def summarise(self, sol, problem) -> dict:
-        return {"peak_q_kPa": float(np.nanmax(sol.history["q_kPa"]))}
+        """Peak q, the non-uniformity, and the homogeneous element test of the same soil, alpha and p0
+        (``material.driver.triaxial``) at the specimen's last axial strain: the platens' effect."""
+        from material import driver
 
-    def plots(self, sol, out_dir: Path) -> None:
-        _plots(sol, out_dir)
+        h = sol.history
+        out = {"peak_q_kPa": float(np.nanmax(h["q_kPa"])), "max_cv_q": float(np.nanmax(h["cv_q"])),
+               "final_cv_q": float(h["cv_q"][-1]), "final_eps_a": float(h["eps_a"][-1])}
+        if out["final_eps_a"] > 0:
+            ref = driver.triaxial(problem.data["soil"], float(self.p0_kPa), float(self.alpha_deg),
+                                  axial_strain=out["final_eps_a"], steps=max(len(h) - 1, 1), on_failure="return")
+            problem.data["element_test"] = ref
+            q_el = float(np.interp(out["final_eps_a"], ref["eps_a"], ref["q_kPa"]))
+            out.update(element_peak_q_kPa=float(np.nanmax(ref["q_kPa"])), element_final_q_kPa=q_el,
+                       final_q_over_element=float(h["q_kPa"][-1] / q_el) if q_el else float("nan"))
+        return out
+
+    def plots(self, sol, problem, out_dir: Path) -> None:
+        _plots(sol, out_dir, problem.data.get("element_test"))
 
 
 def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, platens: str = "rough", *,
-             axial_strain: float = 0.05, steps: int = 25, mesh=None, resolution: int = 4, order: int = 1,
+             axial_strain: float = 0.15, steps: int = 60, mesh=None, resolution: int = 4, order: int = 1,
              out=None, progress: bool = False, linear_solver: str | None = None, write_every: int = 1,
              plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
              interface_thickness_m: float = 0.001, tol: float | None = None, solver=None):
@@ -198,13 +214,14 @@ def _with_interface_layers(mat, d, mu, ti):
     return Composite([mat, layer], assignment)
 
 
-def _plots(sol, out_dir: Path) -> None:
+def _plots(sol, out_dir: Path, element_test=None) -> None:
     from femgran.output import plot_field, plot_history, read_pvd
 
-    plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png", xlabel="axial strain (compression +)",
-                 ylabel="q [kPa]", title="triaxial specimen")
-    plot_history(sol.history, "eps_a", "cv_q", out_dir / "uniformity.png", xlabel="axial strain",
-                 ylabel="CV of sqrt(3 J2)", title="stress non-uniformity")
+    ref = None if element_test is None else ("element test (homogeneous)", element_test["eps_a"], element_test["q_kPa"])
+    plot_history(sol.history, "eps_a", "q_kPa", out_dir / "q_vs_eps_a.png",
+                 xlabel="axial strain [-] (compression +)", ylabel="q [kPa]", title="triaxial specimen", reference=ref)
+    plot_history(sol.history, "eps_a", "cv_q", out_dir / "uniformity.png", xlabel="axial strain [-]",
+                 ylabel="coefficient of variation of sqrt(3 J2) [-]", title="stress non-uniformity")
     entries = read_pvd(out_dir / "triaxial.pvd")
     if entries:
         plot_field(entries[-1][1], "q_kPa", out_dir / "field_q.png")

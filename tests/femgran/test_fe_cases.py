@@ -32,6 +32,8 @@ def test_triaxial_smooth_platens_alpha0_reproduce_the_element_test():
     assert spec.completed
     assert np.abs(spec.history["q_kPa"] - el.history["q_kPa"]).max() < 1e-6 * el.history["q_kPa"].max()
     assert spec.history["cv_q"].max() < 1e-8  # uniform
+    # the summary's own element test (material.driver) agrees, and the overlay is drawn from it
+    assert spec.final_q_over_element == pytest.approx(1.0, abs=1e-6) and spec.max_cv_q < 1e-8
 
 
 def test_triaxial_rough_platens_make_an_inclined_specimen_non_uniform():
@@ -42,6 +44,7 @@ def test_triaxial_rough_platens_make_an_inclined_specimen_non_uniform():
     assert smooth.history["cv_q"][-1] < 1e-8 and abs(smooth.history["top_shift_mm"][-1]) > 1e-4  # distorts freely
     assert rough.history["cv_q"][-1] > 0.05 and abs(rough.history["top_shift_mm"][-1]) < 1e-12  # constrained
     assert rough.peak_q_kPa > smooth.peak_q_kPa  # the platens stiffen the response
+    assert rough.final_q_over_element > smooth.final_q_over_element == pytest.approx(1.0, abs=1e-6)
 
 
 def test_prandtl_bearing_capacity_on_a_coarse_mesh():
