@@ -16,13 +16,14 @@ axis, counter-clockwise: ``alpha_eps`` (strain), ``alpha_deps`` (strain incremen
 
 from __future__ import annotations
 
-import csv
 import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from material.table import Table, TableWriter, read_table
 
 from . import measures
 from .simulation import Simulation
@@ -33,6 +34,25 @@ COLUMNS = ("step", "time_s", "alpha_target_deg", "eps_xx", "eps_yy", "eps_xy", "
            "contact_sigma_xy_kPa", "p_kPa", "q_kPa", "stress_ratio", "phi_mob_deg", "alpha_eps_deg",
            "alpha_deps_deg", "alpha_sigma_deg", "porosity", "coordination", "inertial_number", "steps_per_s")
 # eps_xx, eps_yy, eps_xy, sigma_*: tension positive (the engine's convention)
+CONVENTION = ("tensor components eps_ij, sigma_ij_kPa: tension positive (the engine's); eps_a, eps_v, p, q: "
+              "compression positive; angles from the y axis")
+DESCRIPTIONS = {
+    "step": "DEM time step counter", "time_s": "simulated time [s]",
+    "alpha_target_deg": "prescribed direction of the principal strain rate [deg]",
+    "eps_xx": "boundary strain [-]", "eps_yy": "boundary strain [-]", "eps_xy": "boundary strain [-]",
+    "eps_a": "axial strain -eps_yy [-]", "eps_v": "volumetric strain -tr(E) [-]",
+    "eps_q": "shear strain: radius of the strain Mohr circle [-]",
+    "sigma_xx_kPa": "wall stress [kPa]", "sigma_yy_kPa": "wall stress [kPa]", "sigma_xy_kPa": "wall stress [kPa]",
+    "contact_sigma_xx_kPa": "stress from the contact forces [kPa]", "contact_sigma_yy_kPa": "stress from the "
+    "contact forces [kPa]", "contact_sigma_xy_kPa": "stress from the contact forces [kPa]",
+    "p_kPa": "mean of the principal wall stresses [kPa]", "q_kPa": "difference of the principal wall stresses [kPa]",
+    "stress_ratio": "q / (2 p) [-]", "phi_mob_deg": "mobilised friction angle [deg]",
+    "alpha_eps_deg": "direction of the major compressive strain [deg]",
+    "alpha_deps_deg": "direction of the major compressive strain increment [deg]",
+    "alpha_sigma_deg": "direction of the major compressive stress [deg]",
+    "porosity": "areal porosity [-]", "coordination": "mean coordination number [-]",
+    "inertial_number": "inertial number of the loading [-]", "steps_per_s": "DEM steps per wall-clock second",
+}
 
 
 def principal_angle_deg(tensor) -> float:
@@ -44,21 +64,19 @@ def principal_angle_deg(tensor) -> float:
 
 @dataclass
 class Run:
-    """Result of an experiment: ``history`` (dict of columns), ``final`` state, position snapshots."""
+    """Result of an experiment: ``history`` (:class:`material.table.Table`), ``final`` state, position snapshots."""
 
-    history: dict
+    history: Table
     final: DEMState
     snapshots: list = field(default_factory=list)  # (history row index, positions (N,2), E (2,2))
     meta: dict = field(default_factory=dict)
 
     @property
     def columns(self) -> tuple:
-        return tuple(self.history)
+        return tuple(self.history.columns)
 
     def __getitem__(self, column: str) -> np.ndarray:
-        if column not in self.history:
-            raise KeyError(f"unknown column {column!r}; available: {list(self.history)}")
-        return np.asarray(self.history[column])
+        return self.history[column]
 
     def snapshot_state(self, k: int) -> DEMState:
         """A lightweight state (positions, radii, walls) of snapshot ``k`` for the fabric analysis."""
@@ -67,13 +85,7 @@ class Run:
                         law=self.final.law, boundary_strain=E)
 
     def to_csv(self, path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(self.history)
-            w.writerows(zip(*self.history.values()))
-        return path
+        return self.history.write_csv(path)
 
 
 def _rereference(state: DEMState) -> None:
@@ -130,18 +142,15 @@ class _Recorder:
         if (len(self.rows) - 1) % self.snapshot_every == 0:
             self.snapshots.append((len(self.rows) - 1, st.positions.copy(), E.copy()))
         if self.out is not None:
-            new = self.fh is None
-            if new:
-                self.fh = (self.out / "history.csv").open("a", newline="")
-            w = csv.writer(self.fh)
-            if new and self.fh.tell() == 0:
-                w.writerow(COLUMNS)
-            w.writerow([row[c] for c in COLUMNS])
-            self.fh.flush()
+            if self.fh is None:  # appends after a resume (the file was cut back to the checkpoint)
+                self.fh = TableWriter(self.out / "history.csv", title="DEM run", descriptions=DESCRIPTIONS,
+                                      convention=CONVENTION, append=True)
+            self.fh.write({c: row[c] for c in COLUMNS})
         return row
 
-    def history(self) -> dict:
-        return {c: np.array([r[c] for r in self.rows]) for c in COLUMNS}
+    def history(self) -> Table:
+        return Table({c: np.array([r[c] for r in self.rows]) for c in COLUMNS}, DESCRIPTIONS, title="DEM run",
+                     convention=CONVENTION)
 
     def close(self):
         if self.fh is not None:
@@ -168,10 +177,11 @@ def _drive(state: DEMState, segments: list, record_every: int, out, checkpoint_e
             n_rows = len(h["step"])
             rows_before = [{c: h[c][k].item() for c in COLUMNS} for k in range(n_rows)]
             snaps_before = [(int(h["snap_rows"][k]), h["snap_pos"][k], h["snap_E"][k]) for k in range(len(h["snap_rows"]))]
-        # drop the history lines written after the checkpoint
+        # drop the history lines written after the checkpoint (the header: comment lines and the names)
         with (out / "history.csv").open() as fh:
-            lines = fh.readlines()[: n_rows + 1]
-        (out / "history.csv").write_text("".join(lines))
+            lines = fh.readlines()
+        n_head = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1
+        (out / "history.csv").write_text("".join(lines[: n_head + n_rows]))
     elif out is not None:
         out.mkdir(parents=True, exist_ok=True)
         (out / "history.csv").unlink(missing_ok=True)
@@ -246,9 +256,7 @@ def load_run(folder) -> Run:
     for name in ("history.csv", "final.npz"):
         if not (folder / name).is_file():
             raise FileNotFoundError(f"{str(folder)!r} is not a DEM run folder: {name} is missing")
-    with (folder / "history.csv").open() as fh:
-        rows = list(csv.reader(fh))
-    history = {c: np.array([float(r[k]) for r in rows[1:]]) for k, c in enumerate(rows[0])}
+    history = read_table(folder / "history.csv")
     snaps = []
     if (folder / "snapshots.npz").is_file():
         with np.load(folder / "snapshots.npz", allow_pickle=False) as z:
@@ -280,7 +288,7 @@ def _write_checkpoint(state: DEMState, ckpt: Path, segment: int, step: int, rec:
     snap_pos = np.array([s[1] for s in rec.snapshots]) if rec.snapshots else np.zeros((0, state.n_particles, 2))
     snap_E = np.array([s[2] for s in rec.snapshots]) if rec.snapshots else np.zeros((0, 2, 2))
     tmp = ckpt.with_name("checkpoint_history.tmp.npz")
-    np.savez(tmp, snap_rows=snap_rows, snap_pos=snap_pos, snap_E=snap_E, **h)
+    np.savez(tmp, snap_rows=snap_rows, snap_pos=snap_pos, snap_E=snap_E, **h.to_dict())
     tmp.replace(ckpt.with_name("checkpoint_history.npz"))
     save(state, ckpt)
 

@@ -14,12 +14,13 @@ in the table.
 
 from __future__ import annotations
 
-import csv
 import multiprocessing as mp
 import os
 from pathlib import Path
 
 import numpy as np
+
+from material.table import Table, read_table
 
 from .contacts import ContactLaw
 
@@ -71,20 +72,14 @@ def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain:
             float(max(np.nanmax(biax["inertial_number"]), np.nanmax(rot["inertial_number"])))}
 
 
-def write_csv(path, columns: dict) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(columns)
-        w.writerows(zip(*columns.values()))
-    return path
+def write_csv(path, columns: dict, descriptions: dict | None = None, title: str = "DEM table") -> Path:
+    """Columns as a :class:`material.table.Table` CSV (commented header)."""
+    return Table(columns, descriptions, title=title).write_csv(path)
 
 
-def read_csv(path) -> dict:
-    with Path(path).open() as fh:
-        rows = list(csv.reader(fh))
-    return {c: np.array([float(r[k]) for r in rows[1:]]) for k, c in enumerate(rows[0])}
+def read_csv(path) -> Table:
+    """A table written by :func:`write_csv` or a run's ``history.csv``."""
+    return read_table(path)
 
 
 def _run_one(args):

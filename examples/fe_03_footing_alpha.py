@@ -22,6 +22,7 @@ import numpy as np
 
 from femgran.cases import footing
 from material.factory import make_material
+from material.table import TableWriter
 
 
 def _plot(out: Path, sols: dict) -> None:
@@ -60,21 +61,23 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result, sols = {}, {}
-    with open(out / "summary.csv", "w") as f:
-        f.write("alpha_deg,pressure_at_5pct_kPa,pressure_at_10pct_kPa,steps,newton_iterations_per_step,completed\n")
-        for a in alphas:
-            mat = make_material(None, alpha_deg=a, plane_strain=True, stabilisation=args.stabilisation)
-            sol = footing(mat, 1.0, 18.0, args.surcharge, True, a, settlement_m=0.1, steps=steps, resolution=res,
-                          out=out / f"alpha_{a:g}", plots=False)
-            h = sol.history
-            s, p = h["settlement_m"], h["pressure_kPa"]
-            at5 = float(np.interp(0.05, s, p)) if s.max() >= 0.05 else float("nan")
-            its = h["iterations"][1:].mean()
-            result[a], sols[a] = sol.extra["pressure_at_10pct_kPa"], sol
-            f.write(f"{a:g},{at5:.6g},{result[a]:.6g},{len(h) - 1},{its:.3g},{int(sol.completed)}\n")
-            f.flush()
-            print(f"alpha {a:4g}: pressure at s = 0.1 B {result[a]:.1f} kPa, {len(h) - 1} steps, "
-                  f"{its:.2f} Newton iterations per step [{sol.stop_reason}]")
+    summary = TableWriter(out / "summary.csv", title="strip footing against the bedding angle",
+                          descriptions={"pressure_at_5pct_kPa": "mean footing pressure at s = 0.05 B [kPa]",
+                                        "pressure_at_10pct_kPa": "mean footing pressure at s = 0.1 B [kPa]"})
+    for a in alphas:
+        mat = make_material(None, alpha_deg=a, plane_strain=True, stabilisation=args.stabilisation)
+        sol = footing(mat, 1.0, 18.0, args.surcharge, True, a, settlement_m=0.1, steps=steps, resolution=res,
+                      out=out / f"alpha_{a:g}", plots=False)
+        h = sol.history
+        s, p = h["settlement_m"], h["pressure_kPa"]
+        at5 = float(np.interp(0.05, s, p)) if s.max() >= 0.05 else float("nan")
+        its = h["iterations"][1:].mean()
+        result[a], sols[a] = sol.extra["pressure_at_10pct_kPa"], sol
+        summary.write({"alpha_deg": a, "pressure_at_5pct_kPa": at5, "pressure_at_10pct_kPa": result[a],
+                       "steps": len(h) - 1, "newton_iterations_per_step": its, "completed": int(sol.completed)})
+        print(f"alpha {a:4g}: pressure at s = 0.1 B {result[a]:.1f} kPa, {len(h) - 1} steps, "
+              f"{its:.2f} Newton iterations per step [{sol.stop_reason}]")
+    summary.close()
     _plot(out, sols)
     return result
 

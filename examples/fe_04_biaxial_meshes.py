@@ -41,6 +41,7 @@ from femgran.cases import biaxial
 from femgran.solver import History
 from material import CPAModel, load_preset
 from material.factory import plane_strain_axes
+from material.table import Table
 
 VARIANTS = ("regularised", "unregularised")
 POST_PEAK_STRAINS = (0.035, 0.045, 0.06)  # axial strains at which the post-peak q of the meshes is compared
@@ -153,20 +154,19 @@ def collect(out: Path) -> list[dict]:
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
                      **summary,
                      "peak_q_kPa": float(np.nanmax(h["q_kPa"]))})  # the largest q (older summaries: q near it)
-    with open(out / "summary.csv", "w") as f:
-        f.write("resolution,regularised,element_size_mm,peak_q_kPa,"
-                + ",".join(f"q_at_{e:g}_kPa" for e in POST_PEAK_STRAINS)
-                + "".join(f",drop_at_{e:g}_kPa" for e in POST_PEAK_STRAINS)
-                + ",final_eps_a,peak_phi_deg,peak_psi_deg,localised,band_angle_deg,coulomb_deg,roscoe_deg,"
-                "arthur_deg,completed\n")
-        for r in rows:
-            ref = r["reference_angles_deg"]
-            f.write(f"{r['resolution']},{int(r['regularised'])},{r['element_size_mm']:.4g},{r['peak_q_kPa']:.6g},"
-                    + ",".join(f"{q:.6g}" for q in r["post_peak_q"])
-                    + "".join(f",{r['peak_q_kPa'] - q:.6g}" for q in r["post_peak_q"])
-                    + f",{r['history']['eps_a'][-1]:.6g},{r['peak_friction_deg']:.4g},{r['peak_dilatancy_deg']:.4g},"
-                    f"{int(r['localised'])},{r['band_angle_deg']:.4g},{ref['coulomb']:.4g},{ref['roscoe']:.4g},"
-                    f"{ref['arthur']:.4g},{int(r['completed'])}\n")
+    table = Table(title="shear-band study: biaxial runs on several meshes")
+    for r in rows:
+        ref = r["reference_angles_deg"]
+        row = {"resolution": r["resolution"], "regularised": int(r["regularised"]),
+               "element_size_mm": r["element_size_mm"], "peak_q_kPa": r["peak_q_kPa"]}
+        row.update({f"q_at_{e:g}_kPa": q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
+        row.update({f"drop_at_{e:g}_kPa": r["peak_q_kPa"] - q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
+        row.update(final_eps_a=r["history"]["eps_a"][-1], peak_phi_deg=r["peak_friction_deg"],
+                   peak_psi_deg=r["peak_dilatancy_deg"], localised=int(r["localised"]), band_angle_deg=r["band_angle_deg"],
+                   coulomb_deg=ref["coulomb"], roscoe_deg=ref["roscoe"], arthur_deg=ref["arthur"],
+                   completed=int(r["completed"]))
+        table.append(row)
+    table.write_csv(out / "summary.csv")
     for reg in (True, False):
         sel = [r for r in rows if r["regularised"] == reg]
         parts = []

@@ -42,6 +42,22 @@ COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_sear
            "local_iterations_max", "continuation_points", "failed_points", "rate")
 
 
+DESCRIPTIONS = {
+    "step": "load step", "attempt": "try of the step (0, then one per cut-back)",
+    "iteration": "global Newton iteration (0: the predictor)", "load_factor": "load factor of the try [-]",
+    "residual": "relative residual of this evaluation [-]",
+    "line_search": "step length along the Newton direction (0 for the predictor)",
+    "accepted": "1 if the iterate was taken, 0 for a rejected line-search trial",
+    "points_switched": "points whose set of loading planes changed since the last accepted iterate",
+    "planes_switched": "planes that changed between loading and not since the last accepted iterate",
+    "loading_points": "points with at least one loading plane", "apex_points": "points at the rounded apex",
+    "local_iterations_mean": "mean local Newton iterations of the points that iterated",
+    "local_iterations_max": "largest local Newton iteration count",
+    "continuation_points": "points that needed the continuation of the local solver",
+    "failed_points": "points that could not be integrated", "rate": "estimated order of convergence",
+}
+
+
 def _loading_mask(state, committed) -> np.ndarray | None:
     """(N, k) bool: which planes (or the point, k = 1) load in this iterate; None if the law says nothing."""
     if "loading" in state:
@@ -66,9 +82,11 @@ class NewtonLog:
         self.rows: list[dict] = []
         self._previous = None
         self._accepted: list[float] = []
+        self._writer = None
         if self.path is not None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.path.write_text(",".join(COLUMNS) + "\n")
+            from material.table import TableWriter
+
+            self._writer = TableWriter(self.path, title="Newton log", descriptions=DESCRIPTIONS)
 
     def start_try(self) -> None:
         """A new try of a step begins (first try or after a cut-back): forget the previous iterate."""
@@ -106,9 +124,8 @@ class NewtonLog:
             if mask is not None:
                 self._previous = mask.copy()
         self.rows.append(row)
-        if self.path is not None:
-            with open(self.path, "a") as f:
-                f.write(",".join(repr(float(row[c])) for c in COLUMNS) + "\n")
+        if self._writer is not None:
+            self._writer.write({c: row[c] for c in COLUMNS})
         return row
 
     def table(self) -> dict[str, np.ndarray]:

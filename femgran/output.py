@@ -128,23 +128,20 @@ class SeriesWriter:
         self.every = max(int(every), 1)
         self.project = L2Projector(disc)
         self.datasets: list[tuple[float, str]] = []
-        self._csv = open(self.out_dir / "history.csv", "w")
-        self._cols: list[str] | None = None
+        self._csv = None  # the history.csv TableWriter, made at the first row (it takes the solver's descriptions)
         self._count = 0
         self._last_written = None
 
     def write(self, t: float, solver, row: dict) -> None:
-        self._write_row(row)
+        if self._csv is None:
+            from material.table import TableWriter
+
+            self._csv = TableWriter(self.out_dir / "history.csv", title="FE history",
+                                    descriptions=getattr(solver, "history_descriptions", None))
+        self._csv.write(row)
         if self._count % self.every == 0:
             self._write_fields(t, solver)
         self._count += 1
-
-    def _write_row(self, row: dict) -> None:
-        if self._cols is None:
-            self._cols = list(row)
-            self._csv.write(",".join(self._cols) + "\n")
-        self._csv.write(",".join(repr(float(row.get(c, np.nan))) for c in self._cols) + "\n")
-        self._csv.flush()
 
     def _write_fields(self, t: float, solver) -> None:
         import meshio
@@ -196,7 +193,8 @@ class SeriesWriter:
     def close(self, solver, completed: bool, reason: str) -> None:
         if self._last_written != solver.t:
             self._write_fields(solver.t, solver)
-        self._csv.close()
+        if self._csv is not None:
+            self._csv.close()
         (self.out_dir / "status.json").write_text(json.dumps({"completed": completed, "reason": reason}, indent=2))
 
 

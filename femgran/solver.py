@@ -33,9 +33,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from femgran.state import PointState
+from material.table import Table, read_table
 
 __all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", "LinearSolver", "linear_solve",
-           "LINEAR_SOLVERS"]
+           "LINEAR_SOLVERS", "HISTORY_COLUMNS", "history_descriptions"]
 
 LINEAR_SOLVERS = ("auto", "superlu", "amg-gmres", "ilu-gmres")
 PREDICTORS = ("tangent", "extrapolate", "none")
@@ -147,56 +148,40 @@ class SolverOptions:
         return cls(**base)
 
 
-class History:
-    """Table of global quantities, one row per converged step (columns -> numpy arrays)."""
+class History(Table):
+    """Table of global quantities, one row per converged step (:class:`material.table.Table`; a column
+    a row lacks is NaN there). Columns: :data:`HISTORY_COLUMNS`, the named Dirichlet conditions'
+    displacement and reaction, and the case's own."""
 
-    def __init__(self):
-        self._rows: list[dict] = []
-
-    def append(self, row: dict) -> None:
-        self._rows.append(dict(row))
-
-    @property
-    def columns(self) -> list[str]:
-        cols: list[str] = []
-        for r in self._rows:
-            cols += [k for k in r if k not in cols]
-        return cols
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        if name not in self.columns:
-            raise KeyError(f"history column {name!r}: not found; available {self.columns}")
-        return np.array([r.get(name, np.nan) for r in self._rows], dtype=float)
-
-    def __len__(self) -> int:
-        return len(self._rows)
-
-    def __repr__(self) -> str:
-        return f"History({len(self)} steps, columns={self.columns})"
-
-    def to_csv(self, path) -> None:
-        cols = self.columns
-        with open(path, "w") as f:
-            f.write(",".join(cols) + "\n")
-            for r in self._rows:
-                f.write(",".join(repr(float(r.get(c, np.nan))) for c in cols) + "\n")
+    title = "FE history"
 
     @classmethod
     def read_csv(cls, path) -> "History":
-        """A history written by :meth:`to_csv` or by a run folder's ``history.csv`` (``#`` lines skipped)."""
-        with open(path) as f:
-            lines = [ln.strip() for ln in f if ln.strip() and not ln.startswith("#")]
-        if not lines:
-            raise ValueError(f"history file {str(path)!r}: no header line")
-        cols = lines[0].split(",")
-        h = cls()
-        for i, ln in enumerate(lines[1:], start=2):
-            values = ln.split(",")
-            if len(values) != len(cols):
-                raise ValueError(f"history file {str(path)!r}: row {i} has {len(values)} values "
-                                 f"for {len(cols)} columns")
-            h.append(dict(zip(cols, map(float, values))))
-        return h
+        """A history written by :meth:`write_csv` or a run folder's ``history.csv``."""
+        return read_table(path, cls)
+
+
+#: Descriptions of the history columns the solver writes for every run.
+HISTORY_COLUMNS = {
+    "step": "converged load step (0: the initial state)",
+    "load_factor": "load factor t of the step, 0..t_end [-]",
+    "iterations": "Newton iterations of the step [-]",
+    "residual": "relative residual at convergence (out-of-balance force / reference force) [-]",
+    "cutbacks": "step cut-backs before this step converged [-]",
+    "wall_time_s": "wall time of the step [s]",
+}
+
+
+def history_descriptions(dirichlet, extra: dict | None = None) -> dict:
+    """Descriptions of every column a run's history gets: the solver's, the named Dirichlet conditions'
+    (``<name>_displacement`` [m], ``<name>_reaction`` [kN, or kN/m in plane strain], tension +) and ``extra``."""
+    out = dict(HISTORY_COLUMNS)
+    for d in dirichlet:
+        if d.name:
+            out[f"{d.name}_displacement"] = f"mean prescribed displacement of '{d.name}' [m]"
+            out[f"{d.name}_reaction"] = f"sum of the reaction forces on '{d.name}' [kN, or kN/m in plane strain]"
+    out.update(extra or {})
+    return out
 
 
 @dataclass
@@ -515,7 +500,7 @@ class NewtonSolver:
 
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
-            progress: bool = False, observers=(), fixed_steps: bool = False) -> Solution:
+            progress: bool = False, observers=(), fixed_steps: bool = False, descriptions: dict | None = None) -> Solution:
         """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
 
         writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
@@ -523,6 +508,7 @@ class NewtonSolver:
             then holds f_int - f_ext of the converged step (the reactions on the prescribed DOFs).
         dt_max : largest load-factor step (default t_end / steps: regrowth after a cut-back never
             exceeds the nominal step).
+        descriptions : meaning, unit and sign convention of the observers' columns (the history's header).
         fixed_steps : no regrowth at all after a cut-back (equal steps whenever nothing fails, e.g. to
             compare step by step with material.driver).
         """
@@ -533,7 +519,8 @@ class NewtonSolver:
         dt0 = float(t_end) / steps
         dt_max = dt0 if dt_max is None else float(dt_max)
         dt = dt0
-        history = History()
+        self.history_descriptions = history_descriptions(self.dirichlet, descriptions)
+        history = History(descriptions=self.history_descriptions)
         residual_log = []
         bar = None
         if progress:

@@ -44,6 +44,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
+from material.table import TableWriter
 from material.tensors import MANDEL_WEIGHTS, from_mandel, to_mandel, to_mandel_matrix
 
 __all__ = [
@@ -510,9 +511,8 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     if log is not None:
         log_path = _FilePath(log)
         log_path.parent.mkdir(parents=True, exist_ok=True)
-        log_fh = log_path.open("w", encoding="utf-8")
-        log_fh.write("step,stage,u_kPa," + ",".join(f"sig_{c}_kPa" for c in COMPONENTS) + ","
-                     + ",".join(f"eps_{c}" for c in COMPONENTS) + "\n")
+        log_fh = TableWriter(log_path, title="element path, step by step", convention="tension positive; "
+                             "u_kPa excess pore pressure, compression positive")
         _log_row(log_fh, 0, 0, 0.0, point.stress, point.strain - strain_ref)
     try:
         for iseg, seg in enumerate(path.segments):
@@ -585,10 +585,11 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     return res
 
 
-def _log_row(fh, step: int, stage: int, u: float, stress_m: np.ndarray, strain_m: np.ndarray) -> None:
-    vals = np.concatenate([stress_m / _W, strain_m / _W])  # tensor components
-    fh.write(f"{step},{stage},{u:.12g}," + ",".join(f"{v:.12g}" for v in vals) + "\n")
-    fh.flush()
+def _log_row(writer, step: int, stage: int, u: float, stress_m: np.ndarray, strain_m: np.ndarray) -> None:
+    row = {"step": step, "stage": stage, "u_kPa": u}
+    row.update({f"sig_{c}_kPa": v for c, v in zip(COMPONENTS, stress_m / _W)})  # tensor components
+    row.update({f"eps_{c}": v for c, v in zip(COMPONENTS, strain_m / _W)})
+    writer.write(row)
 
 
 def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):

@@ -24,6 +24,7 @@ from material import driver
 from material.anisotropy import series
 from material.failure import strength_envelope
 from material.parameters import load_preset
+from material.table import Table
 
 __all__ = ["FIGURES", "make_figures", "direct_shear_envelopes"]
 
@@ -37,15 +38,11 @@ def direct_shear_envelopes() -> dict[str, np.ndarray]:
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray], comment: str) -> None:
-    names = list(columns)
+    """The data behind a figure as a :class:`material.table.Table` (shorter columns padded with NaN)."""
     n = max(len(np.atleast_1d(v)) for v in columns.values())
-    with path.open("w", newline="") as f:
-        f.write(f"# {comment}\n")
-        w = csv.writer(f)
-        w.writerow(names)
-        for i in range(n):
-            w.writerow([f"{np.atleast_1d(columns[k])[i]:.10g}" if i < len(np.atleast_1d(columns[k])) else ""
-                        for k in names])
+    padded = {k: np.concatenate([np.atleast_1d(np.asarray(v, float)), np.full(n - len(np.atleast_1d(v)), np.nan)])
+              for k, v in columns.items()}
+    Table(padded, title=comment).write_csv(path)
 
 
 def _fig14(out: Path, full: bool) -> list[Path]:

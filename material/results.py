@@ -9,17 +9,19 @@ tensor in the package), while the named scalar columns follow the **geotechnical
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
+
+from material.table import Table, read_table
 
 __all__ = ["ElementResult", "COMPONENTS", "standard_columns", "read_csv"]
 
 #: Order of the six independent components of a symmetric tensor in every table and path.
 COMPONENTS = ("xx", "yy", "zz", "yz", "xz", "xy")
 _IJ = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+CONVENTION = ("tensor components sig_ij_kPa, eps_ij: tension positive; p, q, eps_v, eps_a, sig1..3: "
+              "compression positive")
 
 
 def standard_columns(stress: np.ndarray, strain: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, str]]:
@@ -65,8 +67,10 @@ def standard_columns(stress: np.ndarray, strain: np.ndarray) -> tuple[dict[str, 
     return cols, desc
 
 
-class ElementResult:
+class ElementResult(Table):
     """Table of an element test: one row per recorded step (row 0 = initial state).
+
+    A :class:`material.table.Table` (columns, descriptions, metadata, one CSV format) with the tensors.
 
     Attributes
     ----------
@@ -87,6 +91,8 @@ class ElementResult:
         Material state after the last converged step (the dict of the material interface).
     """
 
+    title = "femgran element test result"
+
     def __init__(
         self,
         columns: dict[str, np.ndarray],
@@ -99,77 +105,26 @@ class ElementResult:
         final_state: dict | None = None,
         plot_pairs: Iterable[tuple[str, str]] = (),
     ):
-        self._data = {k: np.asarray(v) for k, v in columns.items()}
         n = len(np.asarray(stress))
-        for k, v in self._data.items():
-            if v.shape != (n,):
-                raise ValueError(f"column {k!r}: expected shape ({n},), got {v.shape}")
-        self.descriptions = {k: descriptions.get(k, "") for k in self._data}
+        for k, v in columns.items():
+            if np.shape(v) != (n,):
+                raise ValueError(f"column {k!r}: expected shape ({n},), got {np.shape(v)}")
+        super().__init__(columns, {k: descriptions.get(k, "") for k in columns}, metadata, convention=CONVENTION)
+        self._n = n
         self.stress = np.asarray(stress, dtype=float)
         self.strain = np.asarray(strain, dtype=float)
-        self.metadata = dict(metadata or {})
         self.completed = bool(completed)
         self.message = str(message)
         self.final_state = final_state
         self.plot_pairs = list(plot_pairs)
 
-    # ------------------------------------------------------------------ table access
-    @property
-    def columns(self) -> list[str]:
-        """Column names in table order."""
-        return list(self._data)
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        try:
-            return self._data[name]
-        except KeyError:
-            raise KeyError(f"no column {name!r}; available: {self.columns}") from None
-
-    def __contains__(self, name: str) -> bool:
-        return name in self._data
-
-    def __len__(self) -> int:
-        return len(self.stress)
-
     def __repr__(self) -> str:
         status = "completed" if self.completed else f"STOPPED: {self.message}"
         return f"ElementResult({self.metadata.get('test', '?')}, {len(self)} rows, {status})"
 
-    def add_column(self, name: str, values, description: str) -> None:
-        """Add (or replace) a column of length ``len(self)``."""
-        v = np.asarray(values)
-        if v.shape != (len(self),):
-            raise ValueError(f"column {name!r}: expected shape ({len(self)},), got {v.shape}")
-        self._data[name] = v
-        self.descriptions[name] = description
-
-    def to_dict(self) -> dict[str, np.ndarray]:
-        """Column name -> array (copies)."""
-        return {k: np.array(v) for k, v in self._data.items()}
-
-    # ------------------------------------------------------------------ output
-    def to_csv(self, path) -> Path:
-        """Write the table as CSV with a commented header (``#`` lines): units, convention, metadata.
-
-        The header holds ``# metadata: {json}``, ``# completed: ...``, then one ``# column: meaning``
-        line per column; :func:`read_csv` reads the file back.
-        """
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        header = [
-            "# femgran element test result",
-            "# Tensor components sig_ij_kPa, eps_ij: tension positive; p, q, eps_v, eps_a, sig1..3: compression positive.",
-            f"# completed: {self.completed}" + (f" ({self.message})" if self.message else ""),
-            "# metadata: " + json.dumps(_jsonable(self.metadata), sort_keys=True),
-        ]
-        header += [f"# {k}: {d}" for k, d in self.descriptions.items()]
-        names = self.columns
-        data = np.column_stack([np.asarray(self._data[k], dtype=float) for k in names])
-        with path.open("w", encoding="utf-8") as fh:
-            fh.write("\n".join(header) + "\n")
-            fh.write(",".join(names) + "\n")
-            np.savetxt(fh, data, delimiter=",", fmt="%.12g")
-        return path
+    def header(self, names=None) -> list[str]:
+        lines = super().header(names)
+        return lines[:1] + [f"# completed: {self.completed}" + (f" ({self.message})" if self.message else "")] + lines[1:]
 
     def plot(self, pairs: Iterable[tuple[str, str]] | None = None, title: str | None = None):
         """A matplotlib Figure with one panel per (x, y) column pair (default: the driver's choice).
@@ -204,30 +159,13 @@ class ElementResult:
 
 
 def read_csv(path) -> ElementResult:
-    """Read a table written by :meth:`ElementResult.to_csv` (columns, descriptions, metadata)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"result file {str(path)!r} does not exist")
-    meta: dict[str, Any] = {}
-    desc: dict[str, str] = {}
-    completed, message = True, ""
-    lines = path.read_text(encoding="utf-8").splitlines()
-    body = [ln for ln in lines if not ln.startswith("#")]
-    for ln in lines:
-        if not ln.startswith("# ") or ": " not in ln:
-            continue
-        key, value = ln[2:].split(": ", 1)
-        if key == "metadata":
-            meta = json.loads(value)
-        elif key == "completed":
-            completed = value.startswith("True")
-            message = value[value.find("(") + 1 : -1] if "(" in value else ""
-        else:
-            desc[key] = value
-    names = body[0].split(",")
-    data = np.loadtxt(body[1:], delimiter=",", ndmin=2)
-    cols = {k: data[:, i] for i, k in enumerate(names)}
-    n = data.shape[0]
+    """Read a table written by :meth:`ElementResult.to_csv` (columns, descriptions, metadata, tensors)."""
+    t = read_table(path)
+    completed_line = t.metadata.pop("header", {}).get("completed", "True")
+    completed = completed_line.startswith("True")
+    message = completed_line[completed_line.find("(") + 1: -1] if "(" in completed_line else ""
+    cols = t.to_dict()
+    n = len(t)
     stress = np.zeros((n, 3, 3))
     strain = np.zeros((n, 3, 3))
     for comp, (i, j) in zip(COMPONENTS, _IJ):
@@ -235,18 +173,4 @@ def read_csv(path) -> ElementResult:
             stress[:, i, j] = stress[:, j, i] = cols[f"sig_{comp}_kPa"]
         if f"eps_{comp}" in cols:
             strain[:, i, j] = strain[:, j, i] = cols[f"eps_{comp}"]
-    return ElementResult(cols, desc, stress, strain, meta, completed, message)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, (str, int, float, bool)) or obj is None:
-        return obj
-    return repr(obj)
+    return ElementResult(cols, t.descriptions, stress, strain, t.metadata, completed, message)

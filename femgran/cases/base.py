@@ -34,6 +34,7 @@ class Problem:
 
     observe : ``f(solver) -> dict`` of history columns for each converged step; ``solver.reaction``
         holds the out-of-balance force (the reactions on the prescribed DOFs) of that step.
+    columns : meaning, unit and sign convention of each column ``observe`` gives (the history's header).
     record : what ``build`` chose (mesh, resolved defaults, ...), written to ``parameters.json``.
     data : anything ``summarise`` needs besides the solution.
     """
@@ -44,6 +45,7 @@ class Problem:
     f_fixed: np.ndarray | None = None
     initial_stress: np.ndarray | None = None
     observe: Callable | None = None
+    columns: dict = field(default_factory=dict)
     record: dict = field(default_factory=dict)
     fixed_steps: bool = False
     data: dict = field(default_factory=dict)
@@ -95,7 +97,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None):
         writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every)
     observers = [] if problem.observe is None else [problem.observe]
     sol = newton.run(case.steps, writer=writer, progress=output.progress, observers=observers,
-                     fixed_steps=problem.fixed_steps)
+                     fixed_steps=problem.fixed_steps, descriptions=problem.columns)
     summary = case.summarise(sol, problem)
     sol.extra.update(params=params, **summary)
     if out_dir is not None:

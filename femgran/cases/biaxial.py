@@ -88,6 +88,12 @@ def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = No
     return angle, bool(best >= 2.5 * uniform)
 
 
+COLUMNS = {"eps_a": "axial strain [-], compression +",
+           "eps_lateral": "lateral strain from the mean face displacements [-], compression +",
+           "eps_v": "volumetric strain eps_a + eps_lateral [-], compression +",
+           "q_kPa": "s1 - s3: axial platen force / W - p0 [kPa], compression +"}
+
+
 @dataclass(frozen=True)
 class Biaxial:
     """The plane-strain biaxial specimen W x 2W with an imperfection (module docstring); validated when made.
@@ -174,7 +180,7 @@ class Biaxial:
             snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
             return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
 
-        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe,
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=COLUMNS,
                        record={"height_m": H, "vertical_axis": "y", "regularisation": _regularisation(mat)},
                        data={"snaps": snaps})
 

@@ -101,7 +101,9 @@ class Cavity:
                     "pressure_kPa": radial / (0.5 * np.pi * a)}
 
         return Problem(d, mat, bcs, f_fixed=f_out, initial_stress=-p0 * np.eye(3) if p0 > 0 else None,
-                       observe=observe, record={"mesh": f"quarter annulus, {n} x {2 * n} elements"})
+                       observe=observe, columns={"expansion": "radial displacement of the wall / a [-], outwards +",
+                                                 "pressure_kPa": "cavity pressure [kPa], compression +"},
+                       record={"mesh": f"quarter annulus, {n} x {2 * n} elements"})
 
     def summarise(self, sol, problem) -> dict:
         return {"final_pressure_kPa": float(sol.history["pressure_kPa"][-1])}

@@ -109,10 +109,11 @@ def _sweep(args, func, plane_strain, label, values, key, metric, fixed):
         print(f"{label} = {v:g}: {metric.__doc__} = {metric(sol):.4g}; {sol.stop_reason}; results in {run_dir}")
     write_run_record(out, args, runs=[{"value": v, "metric": m, "completed": c} for v, m, c in rows])
     if len(values) > 1:
-        with open(out / "summary.csv", "w") as f:
-            f.write(f"{label},{metric.__doc__},completed\n")
-            for v, m, c in rows:
-                f.write(f"{v:g},{m:.8g},{int(c)}\n")
+        from material.table import Table
+
+        columns = {label: [r[0] for r in rows], metric.__doc__: [r[1] for r in rows], "completed": [r[2] for r in rows]}
+        Table(columns, {"completed": "1 if the run reached its end, 0 if it stopped"}, {"command": args.command},
+              title=f"{args.command} sweep over {label}").write_csv(out / "summary.csv")
     return sols
 
 

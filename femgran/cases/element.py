@@ -28,6 +28,12 @@ __all__ = ["Element", "element"]
 _PATHS = ("triaxial",)
 
 
+COLUMNS = {"eps_a": "axial strain -eps_zz [-], compression +", "eps_v": "volumetric strain -tr(eps) [-], compression +",
+           "q_kPa": "mean lateral minus axial stress [kPa], compression +", "p_kPa": "mean stress -tr(sigma)/3 [kPa]",
+           "gamma_xz": "engineering shear strain 2 eps_xz [-], tension +",
+           "gamma_yz": "engineering shear strain 2 eps_yz [-], tension +"}
+
+
 @dataclass(frozen=True)
 class Element:
     """Drained triaxial compression of one hexahedral element (module docstring); validated when made.
@@ -76,7 +82,7 @@ class Element:
                     "p_kPa": -np.trace(sig) / 3.0, "gamma_xz": 2 * eps[0, 2], "gamma_yz": 2 * eps[1, 2]}
 
         return Problem(d, mat, bcs, f_fixed=d.pressure_force(lateral, p0), initial_stress=-p0 * np.eye(3),
-                       observe=observe, fixed_steps=True, record={"mesh": "unit cube, one trilinear hexahedron"})
+                       observe=observe, columns=COLUMNS, fixed_steps=True, record={"mesh": "unit cube, one trilinear hexahedron"})
 
     def summarise(self, sol, problem) -> dict:
         return {"peak_q_kPa": float(np.nanmax(sol.history["q_kPa"]))}

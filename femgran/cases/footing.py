@@ -68,6 +68,10 @@ def footing_mesh(width_m: float = 1.0, *, extent: float = 4.0, depth: float = 3.
     return rectangle(x, y, kind=kind)
 
 
+COLUMNS = {"settlement_m": "mean settlement of the footing [m], downwards +",
+           "pressure_kPa": "mean footing pressure: vertical platen force / B [kPa], compression +"}
+
+
 @dataclass(frozen=True)
 class Footing:
     """A rigid strip footing on a layer of soil (module docstring); validated when made.
@@ -161,7 +165,7 @@ class Footing:
 
         mesh_name = str(self.mesh) if self.mesh else \
             f"footing_mesh(resolution={self.resolution}, extent={self.extent}, depth={self.depth})"
-        return Problem(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0, observe=observe,
+        return Problem(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0, observe=observe, columns=COLUMNS,
                        record={"settlement_m": settle, "mesh": mesh_name, "volumetric": d.volumetric,
                                "vertical_axis": "y (up)"})
 

@@ -49,6 +49,14 @@ def _weighted_cv(values, weights):
     return float(s / abs(m)) if abs(m) > 0 else 0.0
 
 
+COLUMNS = {"eps_a": "axial strain [-], compression +",
+           "q_kPa": "axial platen force / initial area - p0 [kPa], compression +",
+           "eps_v": "volumetric strain from the mean point strain [-], compression +",
+           "top_shift_mm": "mean x displacement of the top face minus that of the bottom face [mm]",
+           "cv_q": "volume-weighted coefficient of variation of sqrt(3 J2) over the specimen [-]",
+           "cv_sigma_zz": "volume-weighted coefficient of variation of sigma_zz [-]"}
+
+
 @dataclass(frozen=True)
 class Triaxial:
     """The drained triaxial specimen between rigid platens (module docstring); validated when made.
@@ -150,7 +158,7 @@ class Triaxial:
                     "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
                     "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
-        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe,
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=COLUMNS,
                        record={"mesh": str(self.mesh) if self.mesh else f"box {n}x{n}x{2 * n} hex"},
                        data={"soil": soil})
 

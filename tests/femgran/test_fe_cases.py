@@ -120,9 +120,11 @@ def test_cpa_footing_on_cohesionless_sand_runs_with_quadratic_newton(tmp_path):
     assert its.mean() <= 7 and sol.history["residual"].max() <= 1e-8
     seq = max(sol.residuals, key=len)  # the step with the most iterations
     assert len(seq) >= 3 and seq[-1] <= seq[-2] ** 1.5 * 10  # superlinear at the end
-    log = (tmp_path / "f" / "newton_log.csv").read_text().splitlines()
-    assert log[0].startswith("step,attempt,iteration") and len(log) > len(sol.history)
-    assert len(log) - 1 <= 13 * len(its)
+    from material.table import read_table
+
+    log = read_table(tmp_path / "f" / "newton_log.csv")
+    assert log.columns[:3] == ["step", "attempt", "iteration"] and len(log) + 1 > len(sol.history)
+    assert len(log) <= 13 * len(its)
     assert "advice" not in (tmp_path / "f" / "summary.json").read_text()
 
 
@@ -297,8 +299,11 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
     out = tmp_path / "tx"
     assert main(["triaxial", "--alpha", "0", "90", "--resolution", "1", "--axial-strain", "0.005", "--steps", "2",
                  "--out", str(out), "--no-progress"]) == 0
-    rows = (out / "summary.csv").read_text().splitlines()
-    assert rows[0].startswith("alpha,peak_q_kPa") and len(rows) == 3
+    from material.table import read_table
+
+    summary = read_table(out / "summary.csv")
+    assert summary.columns == ["alpha", "peak_q_kPa", "completed"] and len(summary) == 2
+    assert list(summary["alpha"]) == [0.0, 90.0] and list(summary["completed"]) == [1.0, 1.0]
     assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_vs_eps_a.png").is_file()
     assert main(["footing", "--law", "von_mises", "--unit-weight", "0", "--resolution", "1", "--steps", "2",
                  "--settlement", "0.002", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0

@@ -47,14 +47,13 @@ def test_frictional_platens_lie_between_smooth_and_rough():
 def test_newton_log_sees_the_planes_of_a_weak_zone_specimen(tmp_path):
     """A CPA specimen with a weak zone is a Composite of two CPA laws: their plane states are merged, so
     the Newton log counts loading points and local iterations as for one law (it read NaN before)."""
-    import csv
-
     from femgran.cases.biaxial import biaxial
 
     sol = biaxial(None, 100.0, axial_strain=0.004, steps=2, resolution=4, imperfection=0.0, weak_zone=0.1,
                   weak_zone_height=0.25, out=tmp_path / "bx", plots=False)
     assert sol.completed
-    rows = list(csv.DictReader(open(tmp_path / "bx" / "newton_log.csv")))
-    loading = np.array([float(r["loading_points"]) for r in rows])
-    assert np.isfinite(loading).all() and loading.max() > 0
-    assert max(float(r["local_iterations_max"]) for r in rows) > 0
+    from material.table import read_table
+
+    log = read_table(tmp_path / "bx" / "newton_log.csv")
+    assert np.isfinite(log["loading_points"]).all() and log["loading_points"].max() > 0
+    assert log["local_iterations_max"].max() > 0

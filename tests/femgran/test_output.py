@@ -14,6 +14,7 @@ import material
 from femgran import __version__, output
 from femgran.cases import footing
 from femgran.output import plot_field, plot_history, read_pvd, write_parameters
+from femgran.solver import History
 
 
 @pytest.fixture(scope="module")
@@ -40,9 +41,9 @@ def test_series_written_every_second_step_and_the_last_on_close(run):
     np.testing.assert_allclose([t for t, _ in entries], [lam[0], lam[2], lam[3]], atol=1e-9)
     assert [f.name for _, f in entries] == [f"footing_{i:04d}.vtu" for i in range(3)]
     assert all(f.is_file() and f.parent == out for _, f in entries)
-    hist = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
-    assert hist.shape[0] == 4
-    np.testing.assert_allclose(hist[:, 1], lam)
+    hist = History.read_csv(out / "history.csv")
+    assert len(hist) == 4
+    np.testing.assert_array_equal(hist["load_factor"], lam)  # 17 digits: read back to the bit
     assert json.loads((out / "status.json").read_text())["completed"] is True
     assert not list(out.glob(".*.tmp"))  # the atomic rewrite leaves no temporary file
 
