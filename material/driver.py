@@ -44,7 +44,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
-from material.table import TableWriter
+from material.table import TableWriter, read_table
 from material.tensors import MANDEL_WEIGHTS, from_mandel, to_mandel, to_mandel_matrix
 
 __all__ = [
@@ -302,11 +302,10 @@ class LoadPath:
         path = _FilePath(path)
         if not path.is_file():
             raise FileNotFoundError(f"path file {str(path)!r} does not exist")
-        lines = [ln.strip() for ln in path.read_text(encoding="utf-8").splitlines()]
-        lines = [ln for ln in lines if ln and not ln.startswith("#")]
-        if len(lines) < 3:
-            raise ValueError(f"{path}: need a header and at least two data rows (start + one step), got {len(lines) - 1} rows")
-        names = [h.strip() for h in lines[0].split(",")]
+        table = read_table(path)
+        if len(table) < 2:
+            raise ValueError(f"{path}: need a header and at least two data rows (start + one step), got {len(table)} rows")
+        names = [h.strip() for h in table.columns]
         stress_cols = {f"sig_{c}_kPa": k for k, c in enumerate(COMPONENTS)}
         strain_cols = {f"eps_{c}": k for k, c in enumerate(COMPONENTS)}
         ignored = {"step", "time_s", "time", "stage"}
@@ -316,16 +315,7 @@ class LoadPath:
                 f"{path}: unknown column(s) {unknown}; allowed: {list(stress_cols) + list(strain_cols)} "
                 f"(+ ignored {sorted(ignored)})"
             )
-        rows = []
-        for i, ln in enumerate(lines[1:], start=1):
-            cells = ln.split(",")
-            if len(cells) != len(names):
-                raise ValueError(f"{path}: data row {i} has {len(cells)} values, header has {len(names)} columns")
-            try:
-                rows.append([float(x) for x in cells])
-            except ValueError:
-                raise ValueError(f"{path}: data row {i} has a value that is not a number: {ln!r}") from None
-        data = np.array(rows)
+        data = np.column_stack([table[c] for c in table.columns])
         mode: dict[int, tuple[str, int]] = {}
         for j, n in enumerate(names):
             if n in ignored:

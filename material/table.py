@@ -183,14 +183,16 @@ def read_table(path, cls=Table) -> Table:
         raise ValueError(f"table file {str(path)!r}: no header line")
     names = body[0].split(",")
     rows = []
-    for i, ln in enumerate(body[1:], start=2):
+    for i, ln in enumerate(body[1:], start=1):
         values = ln.split(",")
         if len(values) != len(names):
-            raise ValueError(f"table file {str(path)!r}: row {i} has {len(values)} values for {len(names)} columns")
+            raise ValueError(f"table file {str(path)!r}: data row {i} has {len(values)} values for {len(names)} "
+                             "columns")
         try:
             rows.append([float(v) for v in values])
         except ValueError:
-            raise ValueError(f"table file {str(path)!r}: row {i} holds a value that is not a number") from None
+            raise ValueError(f"table file {str(path)!r}: data row {i} holds a value that is not a number: "
+                             f"{ln!r}") from None
     data = np.array(rows, dtype=float).reshape(len(rows), len(names))
     meta: dict[str, Any] = {}
     desc: dict[str, str] = {}

@@ -40,7 +40,7 @@ def test_the_row_writer_writes_the_same_format_and_appends_after_a_restart(tmp_p
     back = read_table(path)
     assert list(back["k"]) == [0, 1, 2, 3] and back.descriptions == {"r": "residual [-]"}
     path.write_text(path.read_text() + "4,x\n")
-    with pytest.raises(ValueError, match="row 6 holds a value that is not a number"):
+    with pytest.raises(ValueError, match="data row 5 holds a value that is not a number"):
         read_table(path)
 
 
