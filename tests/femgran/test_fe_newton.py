@@ -365,7 +365,7 @@ def test_history_reads_back_what_it_wrote(tmp_path):
     for c in back.columns:
         np.testing.assert_array_equal(back[c], sol.history[c])  # repr of floats: exact
     (tmp_path / "bad.csv").write_text("# note\na,b\n1,2\n3\n")
-    with pytest.raises(ValueError, match="row 3 has 1 values for 2 columns"):
+    with pytest.raises(ValueError, match="data row 2 has 1 values for 2 columns"):
         History.read_csv(tmp_path / "bad.csv")
 
 
