@@ -25,7 +25,26 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Problem", "Output", "run", "case_record"]
+__all__ = ["Problem", "Output", "run", "case_record", "param", "case", "describe"]
+
+
+def param(default, help: str, *, flags: tuple = (), negative: str | None = None):
+    """A field of a case dataclass with its meaning, unit and allowed values (``help``), which the class
+    docstring, ``femgran <case> --help`` and the case-file documentation show. ``flags``: its command-line
+    names (default ``--field-name``); ``negative``: a flag that sets a bool field to False."""
+    return field(default=default, metadata={"help": help, "flags": tuple(flags), "negative": negative})
+
+
+def describe(cls) -> str:
+    """The fields of a case as text: name, default, meaning."""
+    return "\n".join(f"    {f.name} = {f.default!r}: {f.metadata.get('help', '')}" for f in dataclasses.fields(cls))
+
+
+def case(cls):
+    """Class decorator of a case: a frozen dataclass whose docstring ends with its fields (:func:`describe`)."""
+    cls = dataclass(frozen=True)(cls)
+    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n\n    Fields (name = default: meaning)::\n\n" + describe(cls) + "\n"
+    return cls
 
 
 @dataclass

@@ -34,13 +34,12 @@ concentrates in a band (:func:`band_angle`). ``params["regularisation"]`` record
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, run
+from femgran.cases.base import Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -94,34 +93,27 @@ COLUMNS = {"eps_a": "axial strain [-], compression +",
            "q_kPa": "s1 - s3: axial platen force / W - p0 [kPa], compression +"}
 
 
-@dataclass(frozen=True)
+@case
 class Biaxial:
-    """The plane-strain biaxial specimen W x 2W with an imperfection (module docstring); validated when made.
-
-    p0_kPa : confining pressure [kPa]; alpha_deg : deposition angle from the vertical y [deg].
-    width_m : W [m]; axial_strain : final axial strain (compression +); steps : nominal steps.
-    resolution : elements across the width (2 x as many over the height); order : 1 or 2.
-    imperfection : relative inward bump of the left face at mid-height (0: perfect specimen).
-    weak_zone : relative reduction of eta0 in the elements near (0, weak_zone_height H) (0: none;
-        needs a CPA material, :class:`material.CPAModel` or parameters); weak_zone_height in (0, 1).
-    platens : "smooth" (the end faces slide freely) or "rough" (no lateral displacement of the end faces).
-    """
+    """Plane-strain biaxial test of a specimen W x 2W with an imperfection: the shear band (module docstring)."""
 
     name: ClassVar[str] = "biaxial"
     plane_strain: ClassVar[bool] = True
+    headline: ClassVar[str] = "band_angle_deg"
+    compare: ClassVar[tuple] = (("eps_a", "q_kPa"),)
 
-    p0_kPa: float = 100.0
-    alpha_deg: float = 0.0
-    width_m: float = 0.05
-    axial_strain: float = 0.08
-    steps: int = 40
-    resolution: int = 8
-    order: int = 1
-    imperfection: float = 0.02
-    volumetric: str = "bbar"
-    weak_zone: float = 0.0
-    weak_zone_height: float = 0.25
-    platens: str = "smooth"
+    p0_kPa: float = param(100.0, "confining pressure [kPa]", flags=("--p0",))
+    alpha_deg: float = param(0.0, "deposition angle from the vertical y [deg]", flags=("--alpha",))
+    width_m: float = param(0.05, "specimen width W [m] (height 2 W)", flags=("--width",))
+    axial_strain: float = param(0.08, "final axial strain [-], compression +")
+    steps: int = param(40, "nominal number of load steps")
+    resolution: int = param(8, "elements across the width (2 x as many over the height)")
+    order: int = param(1, "element order, 1 or 2")
+    imperfection: float = param(0.02, "inward bump of the left face at mid-height / W (0: perfect specimen)")
+    volumetric: str = param("bbar", "'bbar' or 'standard'")
+    weak_zone: float = param(0.0, "relative drop of eta0 near (0, weak_zone_height H) (CPA; 0: none)")
+    weak_zone_height: float = param(0.25, "height of the weak zone / H, in (0, 1)")
+    platens: str = param("smooth", "'smooth' (end faces slide freely) or 'rough'")
 
     def __post_init__(self):
         check_positive("p0_kPa", self.p0_kPa)

@@ -15,12 +15,11 @@ This module is the whole case: a dataclass of geometry and loads with ``build`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, run
+from femgran.cases.base import Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, solver_options
 from femgran.solver import Dirichlet
 
@@ -42,21 +41,23 @@ def limit_pressure(p0: float, a: float, b: float, yield_stress: float) -> float:
     return p0 + 2.0 * yield_stress / np.sqrt(3.0) * np.log(b / a)
 
 
-@dataclass(frozen=True)
+@case
 class Cavity:
-    """Cylindrical cavity expansion (module docstring); lengths in m, pressures in kPa."""
+    """Cylindrical cavity expansion in a thick-walled cylinder, plane strain (module docstring)."""
 
     name: ClassVar[str] = "cavity"
     plane_strain: ClassVar[bool] = True
+    headline: ClassVar[str] = "final_pressure_kPa"
+    compare: ClassVar[tuple] = (("expansion", "pressure_kPa"),)
 
-    inner_radius_m: float = 0.1
-    outer_radius_m: float = 0.2
-    p0_kPa: float = 100.0
-    expansion: float = 0.05
-    steps: int = 20
-    alpha_deg: float = 0.0
-    radial_elements: int = 8
-    order: int = 2
+    inner_radius_m: float = param(0.1, "cavity radius a [m]")
+    outer_radius_m: float = param(0.2, "outer radius b [m], > a")
+    p0_kPa: float = param(100.0, "in-situ stress and outer pressure [kPa]", flags=("--p0",))
+    expansion: float = param(0.05, "final wall displacement / a [-]")
+    steps: int = param(20, "nominal number of load steps")
+    alpha_deg: float = param(0.0, "deposition angle from y [deg] (CPA)", flags=("--alpha",))
+    radial_elements: int = param(8, "elements across the wall (2 x as many around the quarter)")
+    order: int = param(2, "element order, 1 or 2")
 
     def __post_init__(self):
         a = check_positive("inner_radius_m", self.inner_radius_m)

@@ -1,20 +1,26 @@
-"""``femgran triaxial|footing|biaxial|run`` subcommands (boundary-value problems).
+"""``femgran triaxial|footing|biaxial|cavity|run``: the boundary-value cases on the command line.
+
+Every field of a case dataclass is a flag (``--field-name``, or the short name its ``param`` gives, e.g.
+``--alpha`` for ``alpha_deg``), with the field's help; so a case added to :mod:`femgran.cases` is on the
+command line without a line here. The material, solver and output flags are the same for every case.
 
 Examples::
 
     femgran triaxial --alpha 0 45 90 --platens rough            # -> out/triaxial/alpha_0 ... + comparison
     femgran footing --alpha 0 30 60 90 --surcharge 10           # bearing capacity vs bedding angle
-    femgran footing --law von_mises --E 30000 --yield 173.2 --unit-weight 0   # Prandtl check
+    femgran footing --law von_mises --E 30000 --yield-stress 173.2 --unit-weight 0   # Prandtl check
     femgran biaxial --resolution 8 16 32                        # three meshes on one plot
-    femgran run case.toml                                       # a case file (femgran.cases.casefile)
+    femgran cavity --law von_mises --E 1e5 --yield-stress 173.2 # Hill's cylinder
+    femgran run case.toml --max-iter 40                         # a case file (femgran.cases.casefile)
 
-A sweep (several values of --alpha or --resolution) writes one run folder per value under --out,
-plus ``summary.csv`` and a comparison PNG.
+A sweep (several values of one field, e.g. ``--alpha 0 45 90``) writes one run folder per value under
+``--out`` (``alpha_0``, ...), ``summary.csv`` with every run's summary, and comparison plots.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +28,9 @@ import numpy as np
 from material.commandline import add_out, add_parameters, add_progress, parse_set, write_run_record
 
 __all__ = ["register"]
+
+_TYPES = {"float": float, "int": int, "str": str, "bool": bool}
+_SOLVER_FLAGS = ("tol", "max_iter", "max_cuts", "line_search", "predictor", "linear_solver")
 
 
 def _material(args, alpha, plane_strain):
@@ -34,13 +43,13 @@ def _material(args, alpha, plane_strain):
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
     elif args.law == "drucker_prager":
         spec = {"law": "drucker_prager", "E_kPa": args.E, "nu": args.nu, "cohesion_kPa": args.cohesion,
-                "friction_deg": args.friction}
+                "friction_deg": args.friction_deg}
     else:
         spec = {"law": "linear_elastic", "E_kPa": args.E, "nu": args.nu}
     return build_material(spec, alpha, plane_strain)
 
 
-def _common(p, default_out):
+def _material_flags(p):
     g = p.add_argument_group("material")
     g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "linear_elastic"], default="cpa")
     add_parameters(g)
@@ -51,13 +60,8 @@ def _common(p, default_out):
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
     g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")
     g.add_argument("--cohesion", type=float, default=1.0, help="Drucker-Prager cohesion [kPa]")
-    g.add_argument("--friction", type=float, default=35.0, help="Drucker-Prager friction angle [deg]")
-    p.add_argument("--alpha", type=float, nargs="+", default=[0.0], help="deposition angle(s) [deg]")
-    p.add_argument("--steps", type=int, default=None, help="nominal number of load steps")
-    p.add_argument("--order", type=int, choices=[1, 2], default=None, help="element order")
-    _solver_flags(p)
-    add_out(p, default_out)
-    add_progress(p)
+    g.add_argument("--friction", dest="friction_deg", type=float, default=35.0,
+                   help="Drucker-Prager friction angle [deg]")
 
 
 def _solver_flags(p):
@@ -73,110 +77,76 @@ def _solver_flags(p):
                    help="auto: SuperLU for small and plane-strain problems, AMG-GMRES for large 3D ones")
 
 
-_SOLVER_FLAGS = ("tol", "max_iter", "max_cuts", "line_search", "predictor", "linear_solver")
-
-
 def _solver_given(args) -> dict:
     return {k: getattr(args, k) for k in _SOLVER_FLAGS if getattr(args, k) is not None}
 
 
-def _kw(args, **extra):
+def _flags(f) -> list[str]:
+    return list(f.metadata.get("flags") or ()) or [f"--{f.name.replace('_', '-')}"]
+
+
+def _case_flags(p, cls) -> None:
+    """One flag per field of ``cls``; numbers take one or more values (several: a sweep)."""
+    g = p.add_argument_group(f"{cls.name} (femgran.cases.{cls.__name__}; default: the field's)")
+    for f in dataclasses.fields(cls):
+        typ = _TYPES[str(f.type).split("|")[0].strip()]
+        help_ = f"{f.metadata.get('help', '')} (default {f.default!r})"
+        if typ is bool:
+            g.add_argument(*_flags(f), dest=f.name, action=argparse.BooleanOptionalAction, default=f.default,
+                           help=help_)
+            if f.metadata.get("negative"):
+                g.add_argument(f.metadata["negative"], dest=f.name, action="store_false", help=argparse.SUPPRESS)
+        elif typ in (int, float):
+            g.add_argument(*_flags(f), dest=f.name, type=typ, nargs="+", default=f.default, metavar="VALUE",
+                           help=help_)
+        else:
+            g.add_argument(*_flags(f), dest=f.name, type=typ, default=f.default, help=help_)
+
+
+def _sweep_field(args, cls):
+    """(field, values) of the one field given several values (None, [None] if none); more is an error."""
+    lists = {f.name: v for f in dataclasses.fields(cls) if isinstance(v := getattr(args, f.name), list) and len(v) > 1}
+    if len(lists) > 1:
+        raise ValueError(f"several values for {sorted(lists)}: a command sweeps one field at a time")
+    return next(iter(lists.items())) if lists else (None, [None])
+
+
+def _run_case(args, cls) -> int:
+    from femgran.cases.base import Output, run
     from femgran.cases.common import solver_options
+    from material.table import Table
 
-    kw = {"solver": solver_options(_solver_given(args)), "progress": args.progress}
-    if args.steps is not None:
-        kw["steps"] = args.steps
-    if args.order is not None:
-        kw["order"] = args.order
-    kw.update(extra)
-    return kw
-
-
-def _sweep(args, func, plane_strain, label, values, key, metric, fixed):
     out = Path(args.out)
-    rows = []
-    sols = []
+    key, values = _sweep_field(args, cls)
+    fixed = {f.name: (v[0] if isinstance(v := getattr(args, f.name), list) else v) for f in dataclasses.fields(cls)}
+    label = _flags(next(f for f in dataclasses.fields(cls) if f.name == key))[0].lstrip("-").replace("-", "_") \
+        if key else None
+    solver = solver_options(_solver_given(args))
+    summary, sols = Table(title=f"{cls.name} sweep over {key}", metadata={"command": cls.name}), []
     for v in values:
-        alpha = v if key == "alpha_deg" else args.alpha[0]
-        kw = dict(fixed)
-        kw[key] = v
-        if key != "alpha_deg":
-            kw["alpha_deg"] = alpha
-        run_dir = out / f"{label}_{v:g}" if len(values) > 1 else out
-        sol = func(material=_material(args, alpha, plane_strain), out=run_dir, **kw)
+        case = cls(**{**fixed, **({key: v} if key else {})})
+        run_dir = out / f"{label}_{v:g}" if key else out
+        sol = run(case, _material(args, getattr(case, "alpha_deg", 0.0), cls.plane_strain), solver=solver,
+                  output=Output(run_dir, args.progress))
         sols.append((v, sol))
-        rows.append((v, metric(sol), sol.completed))
-        print(f"{label} = {v:g}: {metric.__doc__} = {metric(sol):.4g}; {sol.stop_reason}; results in {run_dir}")
-    write_run_record(out, args, runs=[{"value": v, "metric": m, "completed": c} for v, m, c in rows])
-    if len(values) > 1:
-        from material.table import Table
+        scalars = {k: float(x) for k, x in sol.extra.items() if isinstance(x, (int, float, np.floating))}
+        summary.append({**({key: v} if key else {}), **scalars, "completed": int(sol.completed)})
+        value = f"{label} = {v:g}: " if key else ""
+        print(f"{value}{cls.headline} = {sol.extra[cls.headline]:.4g}; {sol.stop_reason}; results in {run_dir}")
+    write_run_record(out, args, runs=[{"value": v, cls.headline: s.extra[cls.headline], "completed": s.completed}
+                                      for v, s in sols])
+    if key:
+        summary.write_csv(out / "summary.csv")
+        for x, y in cls.compare:
+            _overlay(sols, x, y, out / f"{y}_vs_{x}.png", label, sols[0][1].history.descriptions)
+    return 0 if all(s.completed for _, s in sols) else 1
 
-        columns = {label: [r[0] for r in rows], metric.__doc__: [r[1] for r in rows], "completed": [r[2] for r in rows]}
-        Table(columns, {"completed": "1 if the run reached its end, 0 if it stopped"}, {"command": args.command},
-              title=f"{args.command} sweep over {label}").write_csv(out / "summary.csv")
-    return sols
 
-
-def _overlay(sols, x, y, path, label, xlabel, ylabel):
+def _overlay(sols, x, y, path, label, descriptions):
     from femgran.output import plot_curves
 
-    plot_curves([(f"{label} = {v:g}", s.history[x], s.history[y], "-") for v, s in sols], path, xlabel=xlabel,
-                ylabel=ylabel)
-
-
-def _triaxial(args):
-    from femgran.cases.triaxial import triaxial
-
-    def metric(s):
-        """peak_q_kPa"""
-        return s.peak_q_kPa
-
-    fixed = _kw(args, p0_kPa=args.p0, platens=args.platens, axial_strain=args.axial_strain, resolution=args.resolution,
-                friction=args.platen_friction)
-    if args.mesh:
-        fixed["mesh"] = args.mesh
-    sols = _sweep(args, triaxial, False, "alpha", args.alpha, "alpha_deg", metric, fixed)
-    if len(sols) > 1:
-        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a.png", "alpha", "axial strain [-]", "q [kPa]")
-        _overlay(sols, "eps_a", "cv_q", Path(args.out) / "uniformity.png", "alpha", "axial strain [-]",
-                 "coefficient of variation of sqrt(3 J2) [-]")
-    return 0
-
-
-def _footing(args):
-    from femgran.cases.footing import footing
-
-    def metric(s):
-        """bearing_capacity_kPa"""
-        return s.bearing_capacity_kPa
-
-    fixed = _kw(args, width_m=args.width, unit_weight=args.unit_weight, surcharge_kPa=args.surcharge,
-                rough=not args.smooth, resolution=args.resolution)
-    if args.settlement is not None:
-        fixed["settlement_m"] = args.settlement
-    if args.mesh:
-        fixed["mesh"] = args.mesh
-    sols = _sweep(args, footing, True, "alpha", args.alpha, "alpha_deg", metric, fixed)
-    if len(sols) > 1:
-        _overlay(sols, "settlement_m", "pressure_kPa", Path(args.out) / "load_settlement.png", "alpha",
-                 "settlement [m]", "mean footing pressure [kPa]")
-    return 0
-
-
-def _biaxial(args):
-    from femgran.cases.biaxial import biaxial
-
-    def metric(s):
-        """band_angle_deg"""
-        return s.band_angle_deg
-
-    fixed = _kw(args, p0_kPa=args.p0, axial_strain=args.axial_strain, imperfection=args.imperfection,
-                alpha_deg=args.alpha[0], platens=args.platens, weak_zone=args.weak_zone,
-                weak_zone_height=args.weak_zone_height)
-    sols = _sweep(args, biaxial, True, "resolution", [int(r) for r in args.resolution], "resolution", metric, fixed)
-    if len(sols) > 1:
-        _overlay(sols, "eps_a", "q_kPa", Path(args.out) / "q_vs_eps_a_meshes.png", "resolution", "axial strain [-]", "q [kPa]")
-    return 0
+    plot_curves([(f"{label} = {v:g}", s.history[x], s.history[y], "-") for v, s in sols], path,
+                xlabel=f"{x}: {descriptions.get(x, '')}", ylabel=f"{y}: {descriptions.get(y, '')}")
 
 
 def _run(args):
@@ -190,42 +160,21 @@ def _run(args):
 
 
 def register(subparsers) -> None:
-    """Add ``triaxial``, ``footing``, ``biaxial`` and ``run``."""
+    """Add one subcommand per case (its fields as flags) and ``run``."""
+    from femgran.cases.casefile import case_types
+
     fmt = argparse.RawDescriptionHelpFormatter
-    p = subparsers.add_parser("triaxial", help="3D triaxial specimen between rigid platens", formatter_class=fmt,
-                              description="Drained triaxial compression of the 50x50x100 mm specimen (femgran.cases.triaxial).")
-    _common(p, "out/triaxial")
-    p.add_argument("--p0", type=float, default=100.0, help="cell pressure [kPa]")
-    p.add_argument("--platens", choices=["rough", "smooth", "frictional"], default="rough")
-    p.add_argument("--platen-friction", type=float, default=0.3, help="platen friction coefficient (--platens frictional)")
-    p.add_argument("--axial-strain", type=float, default=0.15, help="final axial strain (default 0.15, the thesis's)")
-    p.add_argument("--resolution", type=int, default=4, help="elements across the width")
-    p.add_argument("--mesh", help="mesh file (meshio) filling [0,0.05]^2 x [0,0.1] m")
-    p.set_defaults(func=_triaxial)
-
-    p = subparsers.add_parser("footing", help="plane-strain rigid strip footing", formatter_class=fmt,
-                              description="Load-settlement curve and bearing capacity (femgran.cases.footing).")
-    _common(p, "out/footing")
-    p.add_argument("--width", type=float, default=1.0, help="footing width B [m]")
-    p.add_argument("--unit-weight", type=float, default=18.0, help="unit weight [kN/m3]")
-    p.add_argument("--surcharge", type=float, default=0.0, help="surcharge [kPa]")
-    p.add_argument("--smooth", action="store_true", help="smooth footing (default rough)")
-    p.add_argument("--settlement", type=float, default=None, help="final settlement [m] (default 0.1 B)")
-    p.add_argument("--resolution", type=int, default=3, help="elements across the footing half-width")
-    p.add_argument("--mesh", help="2D mesh file (surface y = 0, footing centred at x = 0)")
-    p.set_defaults(func=_footing)
-
-    p = subparsers.add_parser("biaxial", help="plane-strain biaxial test, shear band", formatter_class=fmt,
-                              description="Biaxial compression with an imperfection (femgran.cases.biaxial).")
-    _common(p, "out/biaxial")
-    p.add_argument("--p0", type=float, default=100.0, help="confining pressure [kPa]")
-    p.add_argument("--axial-strain", type=float, default=0.1)
-    p.add_argument("--imperfection", type=float, default=0.02)
-    p.add_argument("--platens", choices=("smooth", "rough"), default="smooth")
-    p.add_argument("--weak-zone", type=float, default=0.0, help="relative drop of eta0 near the left face (CPA)")
-    p.add_argument("--weak-zone-height", type=float, default=0.25, help="its height / H, in (0, 1)")
-    p.add_argument("--resolution", type=int, nargs="+", default=[8], help="elements across the width (one run each)")
-    p.set_defaults(func=_biaxial)
+    for name, cls in case_types().items():
+        if name == "element":  # ``femgran element`` is the material drivers' command; this case runs by file
+            continue
+        summary = (cls.__doc__ or name).strip().splitlines()[0]
+        p = subparsers.add_parser(name, help=summary, description=summary, formatter_class=fmt)
+        _case_flags(p, cls)
+        _material_flags(p)
+        _solver_flags(p)
+        add_out(p, f"out/{name}")
+        add_progress(p)
+        p.set_defaults(func=lambda args, cls=cls: _run_case(args, cls))
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
                               description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)

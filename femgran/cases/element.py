@@ -14,12 +14,11 @@ prescribed, axial strain driven) point by point.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, run
+from femgran.cases.base import Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -34,23 +33,20 @@ COLUMNS = {"eps_a": "axial strain -eps_zz [-], compression +", "eps_v": "volumet
            "gamma_yz": "engineering shear strain 2 eps_yz [-], tension +"}
 
 
-@dataclass(frozen=True)
+@case
 class Element:
-    """Drained triaxial compression of one hexahedral element (module docstring); validated when made.
-
-    path : "triaxial" (the only homogeneous path implemented through the FE solver).
-    p0_kPa : cell pressure [kPa], > 0; alpha_deg : deposition angle from z [deg];
-    axial_strain : final axial strain (compression +) [-]; steps : equal strain steps (no regrowth).
-    """
+    """Drained triaxial compression of one hexahedral element: the FE check of the element drivers (module docstring)."""
 
     name: ClassVar[str] = "element"
     plane_strain: ClassVar[bool] = False
+    headline: ClassVar[str] = "peak_q_kPa"
+    compare: ClassVar[tuple] = (("eps_a", "q_kPa"),)
 
-    path: str = "triaxial"
-    p0_kPa: float = 100.0
-    alpha_deg: float = 0.0
-    axial_strain: float = 0.01
-    steps: int = 50
+    path: str = param("triaxial", "'triaxial' (the homogeneous path implemented through the FE solver)")
+    p0_kPa: float = param(100.0, "cell pressure [kPa], > 0", flags=("--p0",))
+    alpha_deg: float = param(0.0, "deposition angle from z [deg]", flags=("--alpha",))
+    axial_strain: float = param(0.01, "final axial strain [-], compression +")
+    steps: int = param(50, "equal strain steps (no regrowth)")
 
     def __post_init__(self):
         if self.path not in _PATHS:

@@ -23,13 +23,12 @@ linear response).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, run
+from femgran.cases.base import Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, solver_options
 from femgran.solver import Dirichlet
 
@@ -72,38 +71,29 @@ COLUMNS = {"settlement_m": "mean settlement of the footing [m], downwards +",
            "pressure_kPa": "mean footing pressure: vertical platen force / B [kPa], compression +"}
 
 
-@dataclass(frozen=True)
+@case
 class Footing:
-    """A rigid strip footing on a layer of soil (module docstring); validated when made.
-
-    width_m : footing width B [m]; unit_weight : gamma [kN/m^3] (0: weightless); surcharge_kPa : q_s [kPa].
-    rough : rough (no slip) or smooth footing; alpha_deg : bedding angle (e2 from vertical) [deg].
-    settlement_m : final settlement (None: 0.1 B); steps : nominal load steps.
-    K0 : earth pressure coefficient at rest of the in-situ stress.
-    mesh : None (:func:`footing_mesh` with ``resolution``, ``extent``, ``depth``) or a mesh file path
-        (2D, surface at y = 0, footing centred at x = 0).
-    order : 1 or 2 (quadratic elements: recommended for the nearly incompressible plastic flow).
-    volumetric : "bbar" (projected volumetric strain, Q2/P1 or Q1/P0, no volumetric locking) or
-        "standard" (see :class:`femgran.assembly.Discretisation`).
-    """
+    """Plane-strain rigid strip footing: load-settlement curve and bearing capacity (module docstring)."""
 
     name: ClassVar[str] = "footing"
     plane_strain: ClassVar[bool] = True
+    headline: ClassVar[str] = "bearing_capacity_kPa"
+    compare: ClassVar[tuple] = (("settlement_m", "pressure_kPa"),)
 
-    width_m: float = 1.0
-    unit_weight: float = 18.0
-    surcharge_kPa: float = 0.0
-    rough: bool = True
-    alpha_deg: float = 0.0
-    settlement_m: float | None = None
-    steps: int = 40
-    K0: float = 0.5
-    mesh: str | None = None
-    resolution: int = 3
-    order: int = 2
-    extent: float = 4.0
-    depth: float = 3.0
-    volumetric: str = "bbar"
+    width_m: float = param(1.0, "footing width B [m]", flags=("--width",))
+    unit_weight: float = param(18.0, "unit weight gamma [kN/m3] (0: weightless)")
+    surcharge_kPa: float = param(0.0, "surcharge q_s beside the footing [kPa]", flags=("--surcharge",))
+    rough: bool = param(True, "rough footing (no slip); --smooth: free slip", negative="--smooth")
+    alpha_deg: float = param(0.0, "bedding angle: deposition axis e2 from the vertical y [deg]", flags=("--alpha",))
+    settlement_m: float | None = param(None, "final settlement [m] (default 0.1 B)", flags=("--settlement",))
+    steps: int = param(40, "nominal number of load steps")
+    K0: float = param(0.5, "earth pressure coefficient at rest of the in-situ stress")
+    mesh: str | None = param(None, "2D mesh file (surface y = 0, footing centred at x = 0); default footing_mesh")
+    resolution: int = param(3, "elements across the footing half-width (built-in mesh)")
+    order: int = param(2, "element order, 1 or 2 (2: recommended for the nearly incompressible plastic flow)")
+    extent: float = param(4.0, "half-width of the soil domain / B (built-in mesh)")
+    depth: float = param(3.0, "depth of the soil domain / B (built-in mesh)")
+    volumetric: str = param("bbar", "'bbar' (projected volumetric strain, no locking) or 'standard'")
 
     def __post_init__(self):
         check_positive("width_m", self.width_m)

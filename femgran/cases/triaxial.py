@@ -27,13 +27,12 @@ over the specimen; 0 for a uniform field), ``cv_sigma_zz`` (same for the axial s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, run
+from femgran.cases.base import Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -57,35 +56,26 @@ COLUMNS = {"eps_a": "axial strain [-], compression +",
            "cv_sigma_zz": "volume-weighted coefficient of variation of sigma_zz [-]"}
 
 
-@dataclass(frozen=True)
+@case
 class Triaxial:
-    """The drained triaxial specimen between rigid platens (module docstring); validated when made.
-
-    p0_kPa : cell pressure [kPa], > 0; alpha_deg : deposition angle between z and e2 [deg].
-    platens : "rough", "smooth" or "frictional" (thin frictional layer, coefficient ``friction``).
-    friction : platen friction coefficient mu (``platens="frictional"``), > 0.
-    interface_thickness_m : thickness of the frictional layer [m].
-    axial_strain : final axial strain, compression + [-]; steps : nominal number of load steps.
-    mesh : None (structured hexahedra, ``resolution`` x ``resolution`` x 2 ``resolution``) or the path
-        of a mesh file meshio reads (must fill the box [0, 0.05]^2 x [0, 0.1] m).
-    order : 1 (linear) or 2 (quadratic) elements.
-    volumetric : "standard" or "bbar" (hexahedra only; see :class:`femgran.assembly.Discretisation`).
-    """
+    """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens (module docstring)."""
 
     name: ClassVar[str] = "triaxial"
     plane_strain: ClassVar[bool] = False
+    headline: ClassVar[str] = "peak_q_kPa"
+    compare: ClassVar[tuple] = (("eps_a", "q_kPa"), ("eps_a", "cv_q"))
 
-    p0_kPa: float = 100.0
-    alpha_deg: float = 0.0
-    platens: str = "rough"
-    axial_strain: float = 0.15
-    steps: int = 60
-    mesh: str | None = None
-    resolution: int = 4
-    order: int = 1
-    volumetric: str = "standard"
-    friction: float = 0.3
-    interface_thickness_m: float = 0.001
+    p0_kPa: float = param(100.0, "cell pressure [kPa], > 0", flags=("--p0",))
+    alpha_deg: float = param(0.0, "deposition angle between z and e2 [deg]", flags=("--alpha",))
+    platens: str = param("rough", "'rough', 'smooth' or 'frictional' (a thin frictional layer)")
+    axial_strain: float = param(0.15, "final axial strain [-], compression +")
+    steps: int = param(60, "nominal number of load steps")
+    mesh: str | None = param(None, "mesh file filling [0, 0.05]^2 x [0, 0.1] m; default resolution^2 x 2 resolution hexahedra")
+    resolution: int = param(4, "elements across the width (built-in mesh)")
+    order: int = param(1, "element order, 1 or 2")
+    volumetric: str = param("standard", "'standard' or 'bbar' (hexahedra)")
+    friction: float = param(0.3, "platen friction coefficient (platens 'frictional')", flags=("--platen-friction",))
+    interface_thickness_m: float = param(0.001, "thickness of the frictional layer [m]")
 
     def __post_init__(self):
         if self.platens not in PLATENS:

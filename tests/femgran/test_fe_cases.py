@@ -1,5 +1,7 @@
 """The boundary-value cases: element bridge, triaxial specimen, Prandtl footing, shear band, case files, bad input."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -302,11 +304,18 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
     from material.table import read_table
 
     summary = read_table(out / "summary.csv")
-    assert summary.columns == ["alpha", "peak_q_kPa", "completed"] and len(summary) == 2
-    assert list(summary["alpha"]) == [0.0, 90.0] and list(summary["completed"]) == [1.0, 1.0]
-    assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_vs_eps_a.png").is_file()
+    assert summary.columns[:2] == ["alpha_deg", "peak_q_kPa"] and summary.columns[-1] == "completed"
+    assert list(summary["alpha_deg"]) == [0.0, 90.0] and list(summary["completed"]) == [1.0, 1.0]
+    assert "final_q_over_element" in summary.columns  # every scalar of each run's summary
+    assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_kPa_vs_eps_a.png").is_file()
     assert main(["footing", "--law", "von_mises", "--unit-weight", "0", "--resolution", "1", "--steps", "2",
-                 "--settlement", "0.002", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0
+                 "--settlement", "0.002", "--smooth", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0
+    assert json.loads((tmp_path / "ft" / "parameters.json").read_text())["rough"] is False
+    # any field sweeps, and a case added in one module is on the command line without a line of CLI code
+    assert main(["cavity", "--law", "von_mises", "--E", "1e5", "--yield-stress", "173.2", "--p0", "0", "50",
+                 "--steps", "4", "--out", str(tmp_path / "cv"), "--no-progress"]) == 0
+    assert list(read_table(tmp_path / "cv" / "summary.csv")["p0_kPa"]) == [0.0, 50.0]
+    assert main(["cavity", "--p0", "0", "50", "--steps", "2", "4", "--out", str(tmp_path / "x")]) == 2
 
 
 def test_weak_zone_makes_a_composite_that_keeps_failed_points(tmp_path):
