@@ -6,7 +6,10 @@ What may be given (``spec``):
 * a preset name (``"ottawa_c109"``, see :func:`material.parameters.preset_names`) or the path of a
   parameter file (``.toml`` / ``.json``, :func:`material.load_parameters`);
 * :class:`material.CPAParameters`;
-* a material object (anything with ``initial_state`` and ``update``), used as it is.
+* a material object (anything with ``initial_state`` and ``update``), used as it is;
+* a mapping, the ``[material]`` table of a case file: ``law`` (``"cpa"``, the default, ``"von_mises"``,
+  ``"drucker_prager"``, ``"linear_elastic"``) and that law's keys (:data:`LAWS`), e.g.
+  ``{"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0}}``.
 
 The one rule for the deposition angle: a CPA law built here gets the material axes of ``alpha_deg``
 (default 0); a material object keeps its own axes, and an ``alpha_deg`` given with it must agree with
@@ -21,11 +24,20 @@ Frames: ``plane_strain=False`` has the vertical along z (e2 = (sin a, 0, cos a),
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["make_material", "plane_strain_axes", "deposition_axes"]
+__all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS"]
+
+#: Keys of each law in a mapping spec (the ``[material]`` table of a case file).
+LAWS = {
+    "cpa": ("preset", "parameters", "rule", "set", "stabilisation"),
+    "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
+    "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
+    "linear_elastic": ("E_kPa", "nu"),
+}
 
 DEFAULT_PRESET = "ottawa_c109"
 _PARAMETER_SUFFIXES = (".toml", ".json")
@@ -66,9 +78,39 @@ def _parameters(spec):
     return None
 
 
+def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
+    """The material of a mapping spec (module docstring), checked key by key."""
+    import material as mlib
+
+    spec = dict(spec)
+    law = spec.pop("law", "cpa")
+    if law not in LAWS:
+        raise ValueError(f"[material] law = {law!r}: allowed {sorted(LAWS)}")
+    unknown = sorted(set(spec) - set(LAWS[law]))
+    if unknown:
+        raise ValueError(f"[material] (law {law!r}): unknown key(s) {unknown}; allowed {sorted(LAWS[law])}")
+    if law == "cpa":
+        from material.commandline import with_changes
+
+        if "parameters" in spec and "preset" in spec:
+            raise ValueError("[material]: give either preset or parameters, not both")
+        params = mlib.load_parameters(base / spec["parameters"]) if "parameters" in spec else \
+            mlib.load_preset(spec.get("preset", DEFAULT_PRESET))
+        return make_material(with_changes(params, spec.get("set") or {}), alpha_deg=alpha_deg,
+                             plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"))
+    cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
+    try:
+        return cls(**spec)
+    except TypeError as exc:
+        raise ValueError(f"[material] law {law!r}: {exc}") from None
+
+
 def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bool = False,
-                  rule: str | None = None, stabilisation: float | None = None):
-    """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``)."""
+                  rule: str | None = None, stabilisation: float | None = None, base: Path = Path(".")):
+    """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``).
+    ``base``: the folder a parameter file named in a mapping spec is relative to."""
+    if isinstance(spec, Mapping):
+        return _from_mapping(spec, alpha_deg, plane_strain, Path(base))
     params = _parameters(spec)
     if params is not None:
         from material.cpa import CPAModel  # the CPA kernel is the heavy import

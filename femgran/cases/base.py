@@ -35,15 +35,16 @@ def param(default, help: str, *, flags: tuple = (), negative: str | None = None)
     return field(default=default, metadata={"help": help, "flags": tuple(flags), "negative": negative})
 
 
-def describe(cls) -> str:
+def describe(cls, indent: int = 4) -> str:
     """The fields of a case as text: name, default, meaning."""
-    return "\n".join(f"    {f.name} = {f.default!r}: {f.metadata.get('help', '')}" for f in dataclasses.fields(cls))
+    pad = " " * indent
+    return "\n".join(f"{pad}{f.name} = {f.default!r}: {f.metadata.get('help', '')}" for f in dataclasses.fields(cls))
 
 
 def case(cls):
     """Class decorator of a case: a frozen dataclass whose docstring ends with its fields (:func:`describe`)."""
     cls = dataclass(frozen=True)(cls)
-    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n\n    Fields (name = default: meaning)::\n\n" + describe(cls) + "\n"
+    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n\n    Fields (name = default: meaning)::\n\n" + describe(cls, 8) + "\n"
     return cls
 
 

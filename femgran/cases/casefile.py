@@ -38,15 +38,9 @@ import dataclasses
 import tomllib
 from pathlib import Path
 
-__all__ = ["load_case", "run_case", "CASES", "LAWS"]
+__all__ = ["load_case", "run_case", "CASES"]
 
 CASES = ("element", "triaxial", "footing", "biaxial", "cavity")
-LAWS = {
-    "cpa": ("preset", "parameters", "rule", "set", "stabilisation"),
-    "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
-    "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
-    "linear_elastic": ("E_kPa", "nu"),
-}
 _TABLES = ("case", "material", "solver", "output")
 _LEGACY_TOP = ("case", "out", "material", "parameters", "solver")
 
@@ -80,36 +74,10 @@ def _fields(cls) -> list[str]:
 
 
 def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base: Path = Path(".")):
-    """The material object of a ``[material]`` table (None: the case default)."""
-    import material as mlib
+    """The material object of a ``[material]`` table (None: the case default), :func:`material.factory.make_material`."""
+    from material.factory import make_material
 
-    if spec is None:
-        return None
-    spec = dict(spec)
-    law = spec.pop("law", "cpa")
-    if law not in LAWS:
-        raise ValueError(f"[material] law = {law!r}: allowed {sorted(LAWS)}")
-    _check_keys(f"[material] (law {law!r})", spec, LAWS[law])
-    if law == "cpa":
-        from material.factory import make_material
-
-        if "parameters" in spec and "preset" in spec:
-            raise ValueError("[material]: give either preset or parameters, not both")
-        if "parameters" in spec:
-            params = mlib.load_parameters(base / spec["parameters"])
-        else:
-            params = mlib.load_preset(spec.get("preset", "ottawa_c109"))
-        if spec.get("set"):
-            from material.commandline import with_changes
-
-            params = with_changes(params, spec["set"])
-        return make_material(params, alpha_deg=alpha_deg, plane_strain=plane_strain, rule=spec.get("rule"),
-                             stabilisation=spec.get("stabilisation"))
-    cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
-    try:
-        return cls(**spec)
-    except TypeError as exc:
-        raise ValueError(f"[material] law {law!r}: {exc}") from None
+    return None if spec is None else make_material(spec, alpha_deg=alpha_deg, plane_strain=plane_strain, base=base)
 
 
 def _legacy(doc: dict, where: str) -> dict:

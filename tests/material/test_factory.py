@@ -61,3 +61,14 @@ def test_replace_keeps_the_options_and_with_replay_dir_copies(tmp_path):
     np.testing.assert_array_equal(weak.axes, model.axes)
     kept = model.with_replay_dir(tmp_path)
     assert kept.replay_dir == tmp_path and model.replay_dir is None
+
+
+def test_a_mapping_is_the_material_table_of_a_case_file(tmp_path):
+    model = make_material({"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0, "b": 0.1}},
+                          alpha_deg=30.0, plane_strain=True)
+    assert model.options.stabilisation == 0.1 and model.params.beta == 5.0 and model.params.b == (0.1,)
+    np.testing.assert_allclose(model.axes[:, 1], plane_strain_axes(30.0)[:, 1])
+    dp = make_material({"law": "drucker_prager", "E_kPa": 3e4, "nu": 0.3, "cohesion_kPa": 1.0, "friction_deg": 30.0})
+    assert isinstance(dp, DruckerPrager)
+    with pytest.raises(ValueError, match=r"\(law 'von_mises'\): unknown key\(s\) \['phi'\]; allowed"):
+        make_material({"law": "von_mises", "phi": 3})
