@@ -39,6 +39,9 @@ def main(argv: list[str] | None = None) -> int:
     args._argv = list(sys.argv[1:] if argv is None else argv)  # for the run records (material.commandline)
     try:
         return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the run wrote its checkpoint and said where
+        print(f"femgran {args.command}: {exc or 'interrupted'}", file=sys.stderr)
+        return 130
     except (ValueError, KeyError, FileNotFoundError) as exc:
         # Bad input: one clear line, no traceback from deep inside numpy.
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc

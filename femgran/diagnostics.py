@@ -77,16 +77,20 @@ class NewtonLog:
         in memory only.
     """
 
-    def __init__(self, path=None):
+    def __init__(self, path=None, resume_rows: int | None = None):
         self.path = None if path is None else Path(path)
+        self.rows_written = 0 if resume_rows is None else int(resume_rows)
         self.rows: list[dict] = []
         self._previous = None
         self._accepted: list[float] = []
         self._writer = None
         if self.path is not None:
-            from material.table import TableWriter
+            from material.table import TableWriter, truncate_rows
 
-            self._writer = TableWriter(self.path, title="Newton log", descriptions=DESCRIPTIONS)
+            if resume_rows is not None:  # a resumed run: drop the rows written after its checkpoint
+                truncate_rows(self.path, resume_rows)
+            self._writer = TableWriter(self.path, title="Newton log", descriptions=DESCRIPTIONS,
+                                       append=resume_rows is not None)
 
     def start_try(self) -> None:
         """A new try of a step begins (first try or after a cut-back): forget the previous iterate."""
@@ -126,6 +130,7 @@ class NewtonLog:
         self.rows.append(row)
         if self._writer is not None:
             self._writer.write({c: row[c] for c in COLUMNS})
+        self.rows_written += 1
         return row
 
     def table(self) -> dict[str, np.ndarray]:

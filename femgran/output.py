@@ -118,9 +118,11 @@ class SeriesWriter:
     every : int
         Write the fields every ``every`` converged steps (the history gets every step; the last step
         is always written on close).
+    resume : the writer's :meth:`state` saved in a checkpoint: the series and ``history.csv`` continue
+        from there (the rows and frames written after it are dropped).
     """
 
-    def __init__(self, out_dir, disc, name: str = "solution", every: int = 1):
+    def __init__(self, out_dir, disc, name: str = "solution", every: int = 1, resume: dict | None = None):
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.disc = disc
@@ -131,6 +133,18 @@ class SeriesWriter:
         self._csv = None  # the history.csv TableWriter, made at the first row (it takes the solver's descriptions)
         self._count = 0
         self._last_written = None
+        if resume is not None:
+            from material.table import TableWriter, truncate_rows
+
+            self.datasets = [(float(t), str(f)) for t, f in resume["datasets"]]
+            self._count, self._last_written = int(resume["count"]), resume["last_written"]
+            truncate_rows(self.out_dir / "history.csv", self._count)
+            self._csv = TableWriter(self.out_dir / "history.csv", title="FE history", append=True)
+            self._write_pvd()
+
+    def state(self) -> dict:
+        """What a checkpoint needs to continue this series (JSON-able)."""
+        return {"datasets": [[t, f] for t, f in self.datasets], "count": self._count, "last_written": self._last_written}
 
     def write(self, t: float, solver, row: dict) -> None:
         if self._csv is None:

@@ -500,7 +500,8 @@ class NewtonSolver:
 
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
-            progress: bool = False, observers=(), fixed_steps: bool = False, descriptions: dict | None = None) -> Solution:
+            progress: bool = False, observers=(), fixed_steps: bool = False, descriptions: dict | None = None,
+            resume: dict | None = None, after_step=None) -> Solution:
         """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
 
         writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
@@ -509,6 +510,11 @@ class NewtonSolver:
         dt_max : largest load-factor step (default t_end / steps: regrowth after a cut-back never
             exceeds the nominal step).
         descriptions : meaning, unit and sign convention of the observers' columns (the history's header).
+        resume : the run state of a checkpoint (:func:`femgran.checkpoint.restore`, which has put the solver
+            where the checkpoint was): the run continues from there as if it had not stopped.
+        after_step : ``f(solver, run_state) -> str | None`` called after every converged step (and its
+            step-size update) with ``run_state`` = dt, n_step, history, residual_log; a string stops the
+            run cleanly with that reason (an interruption).
         fixed_steps : no regrowth at all after a cut-back (equal steps whenever nothing fails, e.g. to
             compare step by step with material.driver).
         """
@@ -522,17 +528,25 @@ class NewtonSolver:
         self.history_descriptions = history_descriptions(self.dirichlet, descriptions)
         history = History(descriptions=self.history_descriptions)
         residual_log = []
+        if resume is not None:
+            dt, n_step0 = float(resume["dt"]), int(resume["n_step"])
+            for r in resume["history"]:
+                history.append(r)
+            residual_log = [list(r) for r in resume["residual_log"]]
         bar = None
         if progress:
             from tqdm import tqdm
 
             bar = tqdm(total=float(t_end), unit="load", bar_format="{l_bar}{bar}| t={n:.3f}/{total:.3f} {postfix}")
-        row = self._row(0, 0, [0.0], 0, observers)
-        history.append(row)
-        if writer is not None:
-            writer.write(0.0, self, row)
+            bar.update(self.t)  # a resumed run starts where its checkpoint was
+        if resume is None:
+            row = self._row(0, 0, [0.0], 0, observers)
+            history.append(row)
+            if writer is not None:
+                writer.write(0.0, self, row)
         completed, reason = False, ""
-        cuts, n_step = 0, 0
+        cuts, n_step = 0, (0 if resume is None else n_step0)
+        self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
         while self.t < t_end * (1 - 1e-12):
             dt = min(dt, t_end - self.t)
             t_new = self.t + dt
@@ -572,6 +586,11 @@ class NewtonSolver:
             cuts = 0
             if not fixed_steps and iters <= opt.easy_iter:
                 dt = min(dt * opt.grow, dt_max)
+            self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
+            stop = None if after_step is None else after_step(self, self.run_state)
+            if stop:
+                reason = stop
+                break
         else:
             completed, reason = True, f"reached t = {t_end:g}"
         if bar is not None:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Table", "TableWriter", "read_table", "jsonable"]
+__all__ = ["Table", "TableWriter", "read_table", "truncate_rows", "jsonable"]
 
 _FMT = "%.17g"
 
@@ -90,6 +90,10 @@ class Table:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.title!r}, {len(self)} rows, columns={self.columns})"
+
+    def rows(self) -> list[dict]:
+        """The rows as dicts (column -> value)."""
+        return [{k: v[i] for k, v in self._data.items()} for i in range(self._n)]
 
     def to_dict(self) -> dict[str, np.ndarray]:
         """Column name -> array (copies)."""
@@ -168,6 +172,17 @@ class TableWriter:
         fh = getattr(self, "_fh", None)
         if fh is not None and not fh.closed:
             fh.close()
+
+
+def truncate_rows(path, n_rows: int) -> None:
+    """Keep the header and the first ``n_rows`` data rows of a table file (a run resumed from a checkpoint
+    drops the rows written after it)."""
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    head = next((i for i, ln in enumerate(lines) if not ln.startswith("#")), len(lines)) + 1
+    tmp = path.with_name(".tmp_" + path.name)
+    tmp.write_text("".join(lines[: head + int(n_rows)]), encoding="utf-8")
+    tmp.replace(path)
 
 
 def read_table(path, cls=Table) -> Table:

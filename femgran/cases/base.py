@@ -75,16 +75,21 @@ class Problem:
 class Output:
     """Where and how a run writes: ``out`` the run folder (None: nothing on disk), ``write_every`` the
     field series every N converged steps (the history gets every step), ``plots`` the case's figures,
-    ``progress`` a progress bar."""
+    ``progress`` a progress bar, ``checkpoint_every`` a checkpoint every N converged steps (0: only at the
+    end, on a stop and on an interruption), ``keep_checkpoints`` how many are kept."""
 
     out: str | Path | None = None
     progress: bool = False
     write_every: int = 1
     plots: bool = True
+    checkpoint_every: int = 0
+    keep_checkpoints: int = 2
 
     def __post_init__(self):
-        if isinstance(self.write_every, bool) or int(self.write_every) != self.write_every or self.write_every < 1:
-            raise ValueError(f"write_every = {self.write_every!r}: allowed integers >= 1")
+        for key, low in (("write_every", 1), ("checkpoint_every", 0), ("keep_checkpoints", 1)):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+                raise ValueError(f"{key} = {v!r}: allowed integers >= {low}")
 
 
 def case_record(case) -> dict:
@@ -92,32 +97,61 @@ def case_record(case) -> dict:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(case).items()}
 
 
-def run(case, material=None, *, solver=None, output: Output | None = None):
+def run(case, material=None, *, solver=None, output: Output | None = None, resume: bool = False):
     """Run ``case`` with ``material`` (anything :func:`material.factory.make_material` takes), the solver
     options ``solver`` (:class:`femgran.solver.SolverOptions`, a mapping of its fields, or None) and
-    ``output``. Returns the :class:`femgran.solver.Solution` with the case's summary as attributes."""
+    ``output``. Returns the :class:`femgran.solver.Solution` with the case's summary as attributes.
+
+    Checkpoints (:mod:`femgran.checkpoint`) go to ``<out>/checkpoints`` every ``output.checkpoint_every``
+    converged steps, at the end, on a clean stop and on an interruption (Ctrl-C, SIGTERM: the run then
+    records ``"interrupted": true`` in ``status.json`` and raises ``KeyboardInterrupt``). ``resume=True``
+    continues the run in ``output.out`` from its last checkpoint, to the bit the run it continues would have
+    computed; inputs that differ from the checkpoint's are refused, naming what changed.
+    """
+    from femgran import checkpoint as ck
     from femgran.cases.common import keep_failed_points, material_record, newton_log, run_folder, solver_options
     from femgran.solver import NewtonSolver
     from material.factory import make_material
+    from material.table import jsonable
 
     output = Output() if output is None else output
     options = solver_options(solver)
     out_dir = run_folder(output.out)
     mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain)
     problem = case.build(keep_failed_points(mat, out_dir))
-    newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
-                          initial_stress=problem.initial_stress, options=options, log=newton_log(out_dir))
     params = {"case": case.name, **case_record(case), **problem.record, "solver": options.to_dict(),
               "material": material_record(problem.material), "ndofs": problem.disc.ndofs}
-    writer = None
+    saved = None
+    if resume:
+        saved = _checkpoint_to_resume(out_dir, params)
+    log = newton_log(out_dir, None if saved is None else saved[1]["newton_log_rows"])
+    newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
+                          initial_stress=problem.initial_stress, options=options, log=log)
+    run_state = None if saved is None else ck.restore(newton, *saved)
+    writer = ckpt = None
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 
-        write_parameters(out_dir / "parameters.json", params)
-        writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every)
+        if saved is None:
+            write_parameters(out_dir / "parameters.json", params)
+            _write_case_file(out_dir, case, material, options, output)
+        writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every,
+                              resume=None if saved is None else saved[1]["writer"])
+        ckpt = ck.Checkpointer(out_dir, jsonable(params), every=output.checkpoint_every, keep=output.keep_checkpoints)
     observers = [] if problem.observe is None else [problem.observe]
-    sol = newton.run(case.steps, writer=writer, progress=output.progress, observers=observers,
-                     fixed_steps=problem.fixed_steps, descriptions=problem.columns)
+    with _interruptions() as signals:
+        def after_step(solver, state):
+            if ckpt is not None and (ckpt.due(state["n_step"]) or signals):
+                ckpt.write(solver, state, writer)
+            if signals:
+                return f"interrupted by {signals[0]} at t = {solver.t:.6g}"
+            return None
+
+        sol = newton.run(case.steps, writer=writer, progress=output.progress, observers=observers,
+                         fixed_steps=problem.fixed_steps, descriptions=problem.columns, resume=run_state,
+                         after_step=after_step)
+    if ckpt is not None and ckpt.last_step != newton.run_state["n_step"]:
+        ckpt.write(newton, newton.run_state, writer)  # the end, or the last converged step of a stop
     summary = case.summarise(sol, problem)
     sol.extra.update(params=params, **summary)
     if out_dir is not None:
@@ -127,4 +161,74 @@ def run(case, material=None, *, solver=None, output: Output | None = None):
             write_parameters(out_dir / "summary.json", summary)
         if output.plots and hasattr(case, "plots"):
             case.plots(sol, problem, out_dir)
+    if signals:
+        if out_dir is not None:
+            _mark_interrupted(out_dir)
+        raise KeyboardInterrupt(f"{sol.stop_reason}; every converged step is in {out_dir}; continue with "
+                                f"femgran run --resume {out_dir}" if out_dir is not None else sol.stop_reason)
     return sol
+
+
+def _checkpoint_to_resume(out_dir, params: dict):
+    from femgran import checkpoint as ck
+    from material.table import jsonable
+
+    if out_dir is None:
+        raise ValueError("resume=True: needs output.out, the run folder of the run to continue")
+    path = ck.latest(out_dir)
+    if path is None:
+        raise FileNotFoundError(f"resume {out_dir}: no checkpoint to continue from ({out_dir}/checkpoints is empty)")
+    arrays, info = ck.load(path)
+    changes = ck.identity_changes(info["identity"], jsonable(params))
+    if changes:
+        raise ValueError(f"resume {out_dir}: the inputs differ from those of the checkpoint: " + "; ".join(changes))
+    return arrays, info
+
+
+def _write_case_file(out_dir: Path, case, material, options, output: Output) -> None:
+    """``case.toml`` of the run when its material is data (None, a preset, a parameter file, a mapping):
+    ``femgran run --resume`` reads it. A material object cannot be written; such a run resumes from Python."""
+    from collections.abc import Mapping
+
+    import tomli_w
+
+    if not (material is None or isinstance(material, (str, Path, Mapping))):
+        return
+    spec = {} if material is None else dict(material) if isinstance(material, Mapping) else \
+        {"preset": str(material)} if not str(material).lower().endswith((".toml", ".json")) else \
+        {"parameters": str(Path(material).resolve())}
+    doc = {"case": {"name": case.name, **{k: v for k, v in case_record(case).items() if v is not None}},
+           "material": spec, "solver": options.to_dict(),
+           "output": {k: v for k, v in dataclasses.asdict(output).items() if k != "out" and v is not None}}
+    (out_dir / "case.toml").write_text(tomli_w.dumps(doc))
+
+
+def _mark_interrupted(out_dir: Path) -> None:
+    import json
+
+    status = out_dir / "status.json"
+    data = json.loads(status.read_text()) if status.is_file() else {}
+    status.write_text(json.dumps({**data, "completed": False, "interrupted": True}, indent=2))
+
+
+class _interruptions:
+    """Ctrl-C and SIGTERM set a flag (the list of signal names) instead of stopping the process where it
+    is: the run ends its step, writes a checkpoint and stops cleanly. Only in the main thread."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.signals: list[str] = []
+        self.old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.old[sig] = signal.signal(sig, lambda num, frame: self.signals.append(signal.Signals(num).name))
+        return self.signals
+
+    def __exit__(self, *exc):
+        import signal
+
+        for sig, handler in self.old.items():
+            signal.signal(sig, handler)
+        return False

@@ -135,10 +135,11 @@ def load_case(path):
     return case, material, solver, Output(**output_fields)
 
 
-def run_case(path, *, solver=None, **output_overrides):
+def run_case(path, *, solver=None, resume: bool = False, **output_overrides):
     """Run the case of a case file. ``solver``: fields of :class:`femgran.solver.SolverOptions` that replace
     the file's ``[solver]`` values; ``output_overrides``: fields of :class:`femgran.cases.base.Output`, e.g.
-    ``progress=True``. The file is copied into the run folder as ``case.toml``."""
+    ``progress=True``. The file is copied into the run folder as ``case.toml`` first (``femgran run --resume``
+    reads it); ``resume``: continue the run in the output folder from its last checkpoint."""
     from femgran.cases.base import run
     from femgran.cases.common import solver_options
 
@@ -148,9 +149,11 @@ def run_case(path, *, solver=None, **output_overrides):
     solver = file_solver
     if output_overrides:
         output = dataclasses.replace(output, **output_overrides)
-    sol = run(case, material, solver=solver, output=output)
-    if output.out is not None:
+    if output.out is not None and not resume:
         import shutil
 
-        shutil.copyfile(path, Path(output.out) / "case.toml")
+        Path(output.out).mkdir(parents=True, exist_ok=True)
+        if Path(path).resolve() != (Path(output.out) / "case.toml").resolve():
+            shutil.copyfile(path, Path(output.out) / "case.toml")
+    sol = run(case, material, solver=solver, output=output, resume=resume)
     return sol

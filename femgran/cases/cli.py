@@ -33,9 +33,9 @@ _TYPES = {"float": float, "int": int, "str": str, "bool": bool}
 _SOLVER_FLAGS = ("tol", "max_iter", "max_cuts", "line_search", "predictor", "linear_solver")
 
 
-def _material(args, alpha, plane_strain):
-    from femgran.cases.casefile import build_material
-
+def _material(args) -> dict:
+    """The ``[material]`` table of the flags (:func:`material.factory.make_material` takes it as it is, and
+    the run folder's ``case.toml`` records it for ``femgran run --resume``)."""
     if args.law == "cpa":
         spec = {"law": "cpa", "set": parse_set(args.set), "stabilisation": args.stabilisation}
         spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
@@ -46,7 +46,9 @@ def _material(args, alpha, plane_strain):
                 "friction_deg": args.friction_deg}
     else:
         spec = {"law": "linear_elastic", "E_kPa": args.E, "nu": args.nu}
-    return build_material(spec, alpha, plane_strain)
+    if not spec.get("set"):
+        spec.pop("set", None)
+    return spec
 
 
 def _material_flags(p):
@@ -126,8 +128,9 @@ def _run_case(args, cls) -> int:
     for v in values:
         case = cls(**{**fixed, **({key: v} if key else {})})
         run_dir = out / f"{label}_{v:g}" if key else out
-        sol = run(case, _material(args, getattr(case, "alpha_deg", 0.0), cls.plane_strain), solver=solver,
-                  output=Output(run_dir, args.progress))
+        sol = run(case, _material(args), solver=solver,
+                  output=Output(run_dir, args.progress, checkpoint_every=args.checkpoint_every,
+                                keep_checkpoints=args.keep_checkpoints))
         sols.append((v, sol))
         scalars = {k: float(x) for k, x in sol.extra.items() if isinstance(x, (int, float, np.floating))}
         summary.append({**({key: v} if key else {}), **scalars, "completed": int(sol.completed)})
@@ -149,10 +152,28 @@ def _overlay(sols, x, y, path, label, descriptions):
                 xlabel=f"{x}: {descriptions.get(x, '')}", ylabel=f"{y}: {descriptions.get(y, '')}")
 
 
+def _checkpoint_flags(p):
+    g = p.add_argument_group("checkpoints (femgran.checkpoint)")
+    g.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
+                   help="a checkpoint every N converged steps (default 0: at the end, on a stop or Ctrl-C only)")
+    g.add_argument("--keep-checkpoints", type=int, default=2, metavar="K", help="keep the last K (default 2)")
+
+
 def _run(args):
     from femgran.cases.casefile import run_case
 
-    sol = run_case(args.case_file, progress=args.progress, solver=_solver_given(args))
+    if (args.case_file is None) == (args.resume is None):
+        raise ValueError("femgran run: give a case file, or --resume OUT (a run folder), not both")
+    over = {"checkpoint_every": args.checkpoint_every, "keep_checkpoints": args.keep_checkpoints}
+    if args.resume is not None:
+        folder = Path(args.resume)
+        if not (folder / "case.toml").is_file():
+            raise FileNotFoundError(f"--resume {folder}: no case.toml there (a run whose material was a Python "
+                                    "object resumes from Python: femgran.cases.run(..., resume=True))")
+        sol = run_case(folder / "case.toml", progress=args.progress, solver=_solver_given(args), resume=True,
+                       out=folder, **over)
+    else:
+        sol = run_case(args.case_file, progress=args.progress, solver=_solver_given(args), **over)
     if sol.out_dir is not None:
         write_run_record(sol.out_dir, args, completed=sol.completed, stop_reason=sol.stop_reason)
     print(f"{sol.stop_reason}; {len(sol.history) - 1} steps; results in {sol.out_dir}")
@@ -172,13 +193,17 @@ def register(subparsers) -> None:
         _case_flags(p, cls)
         _material_flags(p)
         _solver_flags(p)
+        _checkpoint_flags(p)
         add_out(p, f"out/{name}")
         add_progress(p)
         p.set_defaults(func=lambda args, cls=cls: _run_case(args, cls))
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
                               description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)
-    p.add_argument("case_file", help="case file (TOML)")
+    p.add_argument("case_file", nargs="?", help="case file (TOML)")
+    p.add_argument("--resume", metavar="OUT", default=None,
+                   help="continue the run in folder OUT from its last checkpoint (its case.toml and inputs)")
     _solver_flags(p)
+    _checkpoint_flags(p)
     add_progress(p)
     p.set_defaults(func=_run)

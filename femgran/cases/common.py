@@ -62,11 +62,12 @@ def solver_options(solver=None, *, linear_solver: str | None = None, tol: float 
     return SolverOptions.resolve(solver, where=where, linear_solver=linear_solver, tol=tol)
 
 
-def newton_log(out_dir):
-    """The Newton log of a run: ``newton_log.csv`` in the run folder (in memory without one)."""
+def newton_log(out_dir, resume_rows: int | None = None):
+    """The Newton log of a run: ``newton_log.csv`` in the run folder (in memory without one); a resumed
+    run keeps its first ``resume_rows`` rows and appends."""
     from femgran.diagnostics import NewtonLog
 
-    return NewtonLog(None if out_dir is None else Path(out_dir) / "newton_log.csv")
+    return NewtonLog(None if out_dir is None else Path(out_dir) / "newton_log.csv", resume_rows)
 
 
 def nodes_near(disc, point, tol: float = 1e-9) -> np.ndarray:
