@@ -97,7 +97,8 @@ def case_record(case) -> dict:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(case).items()}
 
 
-def run(case, material=None, *, solver=None, output: Output | None = None, resume: bool = False):
+def run(case, material=None, *, solver=None, output: Output | None = None, resume: bool | str | Path = False,
+        max_steps: int | None = None):
     """Run ``case`` with ``material`` (anything :func:`material.factory.make_material` takes), the solver
     options ``solver`` (:class:`femgran.solver.SolverOptions`, a mapping of its fields, or None) and
     ``output``. Returns the :class:`femgran.solver.Solution` with the case's summary as attributes.
@@ -106,7 +107,9 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     converged steps, at the end, on a clean stop and on an interruption (Ctrl-C, SIGTERM: the run then
     records ``"interrupted": true`` in ``status.json`` and raises ``KeyboardInterrupt``). ``resume=True``
     continues the run in ``output.out`` from its last checkpoint, to the bit the run it continues would have
-    computed; inputs that differ from the checkpoint's are refused, naming what changed.
+    computed; inputs that differ from the checkpoint's are refused, naming what changed. ``resume=FOLDER``
+    starts from the last checkpoint of another run folder and writes a new series in ``output.out`` (the
+    replay of a failed step). ``max_steps``: stop after that many converged steps.
     """
     from femgran import checkpoint as ck
     from femgran.cases.common import keep_failed_points, material_record, newton_log, run_folder, solver_options
@@ -122,9 +125,11 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     params = {"case": case.name, **case_record(case), **problem.record, "solver": options.to_dict(),
               "material": material_record(problem.material), "ndofs": problem.disc.ndofs}
     saved = None
-    if resume:
-        saved = _checkpoint_to_resume(out_dir, params)
-    log = newton_log(out_dir, None if saved is None else saved[1]["newton_log_rows"])
+    elsewhere = not isinstance(resume, bool) and resume is not None
+    if resume is not False and resume is not None:
+        saved = _checkpoint_to_resume(Path(resume) if elsewhere else out_dir, params)
+    continuing = saved is not None and not elsewhere  # the same folder: its files go on
+    log = newton_log(out_dir, saved[1]["newton_log_rows"] if continuing else None)
     newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
                           initial_stress=problem.initial_stress, options=options, log=log)
     run_state = None if saved is None else ck.restore(newton, *saved)
@@ -132,19 +137,22 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 
-        if saved is None:
+        if not continuing:
             write_parameters(out_dir / "parameters.json", params)
             _write_case_file(out_dir, case, material, options, output)
         writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every,
-                              resume=None if saved is None else saved[1]["writer"])
+                              resume=saved[1]["writer"] if continuing else None)
         ckpt = ck.Checkpointer(out_dir, jsonable(params), every=output.checkpoint_every, keep=output.keep_checkpoints)
     observers = [] if problem.observe is None else [problem.observe]
+    first = 0 if run_state is None else run_state["n_step"]
     with _interruptions() as signals:
         def after_step(solver, state):
             if ckpt is not None and (ckpt.due(state["n_step"]) or signals):
                 ckpt.write(solver, state, writer)
             if signals:
                 return f"interrupted by {signals[0]} at t = {solver.t:.6g}"
+            if max_steps is not None and state["n_step"] - first >= max_steps:
+                return f"stopped after {max_steps} step(s) as asked (max_steps), at t = {solver.t:.6g}"
             return None
 
         sol = newton.run(case.steps, writer=writer, progress=output.progress, observers=observers,
@@ -175,6 +183,7 @@ def _checkpoint_to_resume(out_dir, params: dict):
 
     if out_dir is None:
         raise ValueError("resume=True: needs output.out, the run folder of the run to continue")
+    out_dir = Path(out_dir)
     path = ck.latest(out_dir)
     if path is None:
         raise FileNotFoundError(f"resume {out_dir}: no checkpoint to continue from ({out_dir}/checkpoints is empty)")

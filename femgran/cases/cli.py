@@ -180,6 +180,45 @@ def _run(args):
     return 0 if sol.completed else 1
 
 
+def _replay(args) -> int:
+    """Re-run, from the last checkpoint of a run folder, the step at which the run stopped, with diagnostics."""
+    from femgran import checkpoint as ck
+    from femgran.cases.base import Output, run
+    from femgran.cases.casefile import load_case
+    from femgran.cases.common import solver_options
+    from material.table import read_table
+
+    folder = Path(args.run_folder)
+    if not (folder / "case.toml").is_file():
+        raise FileNotFoundError(f"replay {folder}: no case.toml there (not a run folder of femgran, or a run whose "
+                                "material was a Python object: femgran.cases.run(..., resume=FOLDER, max_steps=1))")
+    last = ck.latest(folder)
+    if last is None:
+        raise FileNotFoundError(f"replay {folder}: no checkpoint in {folder / 'checkpoints'}")
+    info = ck.load(last)[1]
+    case, material, solver, _ = load_case(folder / "case.toml")
+    solver = solver_options({**solver.to_dict(), **_solver_given(args)})
+    dest = Path(args.out) if args.out else folder / "replay"
+    sol = run(case, material, solver=solver, output=Output(dest, progress=False, plots=False), resume=folder,
+              max_steps=1)
+    print(f"replay of {folder} from its checkpoint after step {info['n_step']} (t = {info['t']:.6g}, "
+          f"next step dt = {info['dt']:.3g}): {sol.stop_reason}")
+    log = read_table(dest / "newton_log.csv")
+    for step, attempt in sorted({(int(s), int(a)) for s, a in zip(log["step"], log["attempt"])}):
+        rows = (log["step"] == step) & (log["attempt"] == attempt)
+        kept = rows & (log["accepted"] == 1)
+        seq = " ".join(f"{r:.1e}" for r in log["residual"][kept])
+        print(f"  step {step} try {attempt} (load factor {log['load_factor'][rows][0]:.6g}): residuals {seq}; "
+              f"most failed points {int(np.nanmax(log['failed_points'][rows]))}, most switching points "
+              f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
+    replays = sorted((dest / "failed_points").glob("*.npz"))
+    print(f"  {len(replays)} replay file(s) of failed points in {dest / 'failed_points'} (material.cpa.replay)"
+          if replays else "  no material point failed")
+    write_run_record(dest, args, replayed_from=str(folder), checkpoint_step=info["n_step"],
+                     completed=sol.completed, stop_reason=sol.stop_reason, failed_point_files=[p.name for p in replays])
+    return 0
+
+
 def register(subparsers) -> None:
     """Add one subcommand per case (its fields as flags) and ``run``."""
     from femgran.cases.casefile import case_types
@@ -197,6 +236,14 @@ def register(subparsers) -> None:
         add_out(p, f"out/{name}")
         add_progress(p)
         p.set_defaults(func=lambda args, cls=cls: _run_case(args, cls))
+
+    p = subparsers.add_parser("replay", help="re-run the step at which a run stopped, with diagnostics",
+                              description="From the last checkpoint of a run folder, run its next step again and "
+                                          "report each try's residuals, the points that failed and their replay files.")
+    p.add_argument("run_folder", help="the folder of the run that stopped")
+    p.add_argument("--out", default=None, help="where the replay writes (default RUN_FOLDER/replay)")
+    _solver_flags(p)
+    p.set_defaults(func=_replay)
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
                               description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)

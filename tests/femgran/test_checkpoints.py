@@ -90,3 +90,21 @@ def test_the_command_line_interrupts_with_a_message_and_resumes(tmp_path, monkey
     assert main(["run", "--resume", str(out), "--no-progress"]) == 0
     assert json.loads((out / "status.json").read_text())["completed"] is True
     assert len(read_table(out / "history.csv")) == 7
+
+
+def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
+    from femgran.cli import main
+
+    out = tmp_path / "stopped"
+    # four Newton iterations and no cut-back: the stiff sand's plastic first steps cannot converge
+    argv = ["footing", "--resolution", "1", "--steps", "6", "--settlement", "0.01", "--set", "E=60000",
+            "--max-iter", "4", "--max-cuts", "0", "--no-progress", "--out", str(out)]
+    assert main(argv) == 1
+    stopped = json.loads((out / "status.json").read_text())
+    assert stopped["completed"] is False
+    capsys.readouterr()
+    assert main(["replay", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"replay of {out} from its checkpoint after step" in text and "residuals" in text
+    replayed = json.loads((out / "replay" / "status.json").read_text())
+    assert replayed["reason"] == stopped["reason"]  # the same step fails the same way, deterministically
