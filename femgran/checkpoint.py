@@ -37,15 +37,31 @@ def latest(run_folder) -> Path | None:
     return found[-1] if found else None
 
 
+_NEEDED = ("u", "stress")
+
+
 def load(json_path) -> tuple[dict, dict]:
-    """(arrays, info) of a checkpoint."""
+    """(arrays, info) of a checkpoint; a truncated or corrupted one raises ``ValueError`` naming the file."""
+    import zipfile
+
     json_path = Path(json_path)
-    info = json.loads(json_path.read_text())
+    npz = json_path.with_suffix(".npz")
+    try:
+        info = json.loads(json_path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"checkpoint {json_path}: unreadable ({exc}); remove it to resume from the one before") from None
     if info.get("format") != FORMAT:
-        raise ValueError(f"{json_path}: not a checkpoint of this format (format = {info.get('format')!r}, "
+        raise ValueError(f"checkpoint {json_path}: not a checkpoint of this format (format = {info.get('format')!r}, "
                          f"expected {FORMAT!r})")
-    with np.load(json_path.with_suffix(".npz"), allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
+    try:
+        with np.load(npz, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"checkpoint {npz}: truncated or corrupted ({type(exc).__name__}: {exc}); remove it and its "
+                         ".json to resume from the one before") from None
+    missing = [k for k in _NEEDED if k not in arrays]
+    if missing:
+        raise ValueError(f"checkpoint {npz}: arrays {missing} missing (a truncated or foreign file)")
     return arrays, info
 
 

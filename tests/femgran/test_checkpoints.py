@@ -108,3 +108,61 @@ def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     assert f"replay of {out} from its checkpoint after step" in text and "residuals" in text
     replayed = json.loads((out / "replay" / "status.json").read_text())
     assert replayed["reason"] == stopped["reason"]  # the same step fails the same way, deterministically
+
+
+def test_a_kill_during_a_checkpoint_write_leaves_the_previous_one_and_a_corrupted_one_is_named(tmp_path):
+    out = Output(tmp_path / "r", plots=False, checkpoint_every=2, keep_checkpoints=3)
+    run(CASE, SAND, output=out)
+    folder = tmp_path / "r" / "checkpoints"
+    newest = latest(tmp_path / "r")
+    # a write killed before its .json was renamed into place: an .npz (and a temporary) without a .json
+    (folder / "step_000099.npz").write_bytes(b"partial")
+    (folder / ".tmp_step_000099.json").write_text("{")
+    assert latest(tmp_path / "r") == newest
+    resumed = run(CASE, SAND, output=out, resume=True)  # from the last complete checkpoint: nothing left to do
+    assert resumed.completed
+    newest.with_suffix(".npz").write_bytes(newest.with_suffix(".npz").read_bytes()[:100])  # truncated
+    with pytest.raises(ValueError, match=rf"checkpoint {newest.with_suffix('.npz')}: truncated or corrupted"):
+        run(CASE, SAND, output=out, resume=True)
+    newest.write_text('{"format": ')
+    with pytest.raises(ValueError, match=rf"checkpoint {newest}: unreadable"):
+        run(CASE, SAND, output=out, resume=True)
+
+
+KILLED_RUN = """
+import sys
+from femgran.cases import Footing, Triaxial, Output, run
+case = {"footing": Footing(resolution=1, steps=12, settlement_m=0.02),
+        "triaxial": Triaxial(resolution=1, steps=12, axial_strain=0.02)}[sys.argv[1]]
+run(case, {"preset": "ottawa_c109", "stabilisation": 0.1},
+    output=Output(sys.argv[2], plots=False, checkpoint_every=1, keep_checkpoints=2))
+"""
+
+
+@pytest.mark.parametrize("name", ["footing", "triaxial"])
+def test_a_run_killed_mid_run_resumes_to_the_uninterrupted_run(tmp_path, name):
+    import subprocess
+    import sys
+    import time
+
+    from femgran.cases import Footing, Triaxial
+
+    case = {"footing": Footing(resolution=1, steps=12, settlement_m=0.02),
+            "triaxial": Triaxial(resolution=1, steps=12, axial_strain=0.02)}[name]
+    full = run(case, SAND, output=Output(tmp_path / "full", plots=False))
+    script = tmp_path / "killed.py"
+    script.write_text(KILLED_RUN)
+    child = subprocess.Popen([sys.executable, str(script), name, str(tmp_path / "killed")])
+    deadline, checkpoints = time.time() + 120, tmp_path / "killed" / "checkpoints"
+    while time.time() < deadline and len(list(checkpoints.glob("step_*.json"))) < 2:
+        time.sleep(0.02)
+    child.send_signal(signal.SIGKILL)  # no chance to clean up
+    child.wait()
+    stopped_at = load(latest(tmp_path / "killed"))[1]["n_step"]
+    assert 0 < stopped_at < len(full.history) - 1  # killed in mid-run
+    resumed = run(case, SAND, output=Output(tmp_path / "killed", plots=False), resume=True)
+    np.testing.assert_array_equal(resumed.u, full.u)
+    np.testing.assert_array_equal(resumed.stress, full.stress)
+    a, b = _numbers(tmp_path / "full"), _numbers(tmp_path / "killed")
+    for key in a:
+        np.testing.assert_array_equal(b[key], a[key])
