@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Problem", "Output", "run", "case_record", "param", "case", "describe"]
+__all__ = ["Problem", "Output", "run", "case_record", "param", "case", "describe", "Drainage"]
 
 
 def param(default, help: str, *, flags: tuple = (), negative: str | None = None):
@@ -41,8 +41,32 @@ def describe(cls, indent: int = 4) -> str:
     return "\n".join(f"{pad}{f.name} = {f.default!r}: {f.metadata.get('help', '')}" for f in dataclasses.fields(cls))
 
 
+DRAINAGE = ("drained", "undrained")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Drainage:
+    """The pore water of a case, a base of every case (keyword-only fields, after the case's own)."""
+
+    drainage: str = param("drained", "'drained' or 'undrained' (pore water as a penalty, material.undrained)")
+    pore_bulk_modulus_kPa: float = param(5.5e6, "undrained: bulk modulus of the pore water over the porosity, "
+                                                "K_w / n [kPa] (water 2.2e6 kPa, n = 0.4)")
+
+
 def case(cls):
-    """Class decorator of a case: a frozen dataclass whose docstring ends with its fields (:func:`describe`)."""
+    """Class decorator of a case: a frozen dataclass whose docstring ends with its fields (:func:`describe`);
+    the drainage fields (:class:`Drainage`) are checked before the case's own ``__post_init__``."""
+    own = cls.__dict__.get("__post_init__")
+
+    def post_init(self):
+        if self.drainage not in DRAINAGE:
+            raise ValueError(f"drainage = {self.drainage!r}: allowed {DRAINAGE}")
+        if not (np.isfinite(self.pore_bulk_modulus_kPa) and self.pore_bulk_modulus_kPa > 0):
+            raise ValueError(f"pore_bulk_modulus_kPa = {self.pore_bulk_modulus_kPa!r}: must be > 0 (finite)")
+        if own is not None:
+            own(self)
+
+    cls.__post_init__ = post_init
     cls = dataclass(frozen=True)(cls)
     cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n\n    Fields (name = default: meaning)::\n\n" + describe(cls, 8) + "\n"
     return cls
@@ -122,6 +146,15 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     out_dir = run_folder(output.out)
     mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain)
     problem = case.build(keep_failed_points(mat, out_dir))
+    observers = [] if problem.observe is None else [problem.observe]
+    if getattr(case, "drainage", "drained") == "undrained":
+        from material.undrained import Undrained
+
+        problem.material = Undrained(problem.material, case.pore_bulk_modulus_kPa)
+        weights = problem.disc.dx.ravel()
+        observers.append(lambda s: {"pore_pressure_kPa": float(np.average(s.points.state["pore_pressure_kPa"],
+                                                                           weights=weights))})
+        problem.columns = {**problem.columns, "pore_pressure_kPa": "mean excess pore pressure [kPa], compression +"}
     params = {"case": case.name, **case_record(case), **problem.record, "solver": options.to_dict(),
               "material": material_record(problem.material), "ndofs": problem.disc.ndofs}
     saved = None
@@ -143,7 +176,6 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every,
                               resume=saved[1]["writer"] if continuing else None)
         ckpt = ck.Checkpointer(out_dir, jsonable(params), every=output.checkpoint_every, keep=output.keep_checkpoints)
-    observers = [] if problem.observe is None else [problem.observe]
     first = 0 if run_state is None else run_state["n_step"]
     with _interruptions() as signals:
         def after_step(solver, state):

@@ -39,7 +39,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, case, param, run
+from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -94,7 +94,7 @@ COLUMNS = {"eps_a": "axial strain [-], compression +",
 
 
 @case
-class Biaxial:
+class Biaxial(Drainage):
     """Plane-strain biaxial test of a specimen W x 2W with an imperfection: the shear band (module docstring)."""
 
     name: ClassVar[str] = "biaxial"

@@ -19,7 +19,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, case, param, run
+from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, solver_options
 from femgran.solver import Dirichlet
 
@@ -42,7 +42,7 @@ def limit_pressure(p0: float, a: float, b: float, yield_stress: float) -> float:
 
 
 @case
-class Cavity:
+class Cavity(Drainage):
     """Cylindrical cavity expansion in a thick-walled cylinder, plane strain (module docstring)."""
 
     name: ClassVar[str] = "cavity"

@@ -18,7 +18,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, case, param, run
+from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -34,7 +34,7 @@ COLUMNS = {"eps_a": "axial strain -eps_zz [-], compression +", "eps_v": "volumet
 
 
 @case
-class Element:
+class Element(Drainage):
     """Drained triaxial compression of one hexahedral element: the FE check of the element drivers (module docstring)."""
 
     name: ClassVar[str] = "element"

@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, case, param, run
+from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, solver_options
 from femgran.solver import Dirichlet
 
@@ -72,7 +72,7 @@ COLUMNS = {"settlement_m": "mean settlement of the footing [m], downwards +",
 
 
 @case
-class Footing:
+class Footing(Drainage):
     """Plane-strain rigid strip footing: load-settlement curve and bearing capacity (module docstring)."""
 
     name: ClassVar[str] = "footing"

@@ -32,7 +32,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.cases.base import Output, Problem, case, param, run
+from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
 
@@ -57,7 +57,7 @@ COLUMNS = {"eps_a": "axial strain [-], compression +",
 
 
 @case
-class Triaxial:
+class Triaxial(Drainage):
     """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens (module docstring)."""
 
     name: ClassVar[str] = "triaxial"
@@ -162,7 +162,8 @@ class Triaxial:
                "final_cv_q": float(h["cv_q"][-1]), "final_eps_a": float(h["eps_a"][-1])}
         if out["final_eps_a"] > 0:
             ref = driver.triaxial(problem.data["soil"], float(self.p0_kPa), float(self.alpha_deg),
-                                  axial_strain=out["final_eps_a"], steps=max(len(h) - 1, 1), on_failure="return")
+                                  axial_strain=out["final_eps_a"], steps=max(len(h) - 1, 1), on_failure="return",
+                                  drained=self.drainage == "drained")
             problem.data["element_test"] = ref
             q_el = float(np.interp(out["final_eps_a"], ref["eps_a"], ref["q_kPa"]))
             out.update(element_peak_q_kPa=float(np.nanmax(ref["q_kPa"])), element_final_q_kPa=q_el,
