@@ -78,9 +78,12 @@ def identity_changes(saved: dict, now: dict, prefix: str = "") -> list[str]:
 
 
 def restore(solver, arrays: dict, info: dict) -> dict:
-    """Put the solver where the checkpoint was; returns the run state the solver's ``run(resume=...)`` takes."""
+    """Put the solver where the checkpoint was (its stage set already, :meth:`NewtonSolver.set_stage`); returns
+    the run state the solver's ``run(resume=...)`` takes."""
     pts = solver.points
     solver.u = arrays["u"].copy()
+    if "u_start" in arrays:
+        solver.u_start = arrays["u_start"].copy()
     solver.t = float(info["t"])
     pts.stress = arrays["stress"].copy()
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
@@ -113,13 +116,15 @@ class Checkpointer:
         self.folder.mkdir(parents=True, exist_ok=True)
         npz, js = _paths(self.folder, n)
         pts = solver.points
-        arrays = {"u": solver.u, "stress": pts.stress, **{f"state__{k}": np.asarray(v) for k, v in pts.state.items()}}
+        arrays = {"u": solver.u, "u_start": solver.u_start, "stress": pts.stress,
+                  **{f"state__{k}": np.asarray(v) for k, v in pts.state.items()}}
         if solver._committed_tangent is not None:
             arrays["tangent"] = solver._committed_tangent
         last = solver._last_increment
         if last is not None:
             arrays["last_du"] = last[0]
         info = {"format": FORMAT, "femgran_version": __version__, "t": solver.t, "dt": run_state["dt"], "n_step": n,
+                "stage": int(getattr(solver, "stage", 0)),
                 "last_dt": None if last is None else float(last[1]),
                 "history": run_state["history"].rows(),
                 "residual_log": [list(map(float, r)) for r in run_state["residual_log"]],

@@ -187,7 +187,7 @@ class SeriesWriter:
         fname = f"{self.name}_{len(self.datasets):04d}.vtu"
         meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data).write(self.out_dir / fname)
         self.datasets.append((float(t), fname))
-        self._last_written = solver.t
+        self._last_written = _series_time(solver)
         self._write_pvd()
 
     def _write_pvd(self) -> None:
@@ -205,11 +205,16 @@ class SeriesWriter:
         return self.out_dir / f"{self.name}.pvd"
 
     def close(self, solver, completed: bool, reason: str) -> None:
-        if self._last_written != solver.t:
-            self._write_fields(solver.t, solver)
+        if self._last_written != _series_time(solver):
+            self._write_fields(_series_time(solver), solver)
         if self._csv is not None:
             self._csv.close()
         (self.out_dir / "status.json").write_text(json.dumps({"completed": completed, "reason": reason}, indent=2))
+
+
+def _series_time(solver) -> float:
+    """The time of the series: the load factor, plus the stage index in a staged run."""
+    return getattr(solver, "time_offset", 0.0) + solver.t
 
 
 def _meshio_cells(mesh):

@@ -311,9 +311,21 @@ class NewtonSolver:
         check_material(material)
         self.disc = disc
         self.material = material
-        self.dirichlet = list(dirichlet)
         self.options = options or SolverOptions()
-        n = disc.ndofs
+        self.points = PointState(material, disc.n_points, initial_stress, element_size=disc.element_size())
+        self.u = np.zeros(disc.ndofs)
+        self.t = 0.0
+        self.time_offset = 0.0  # the series time of a staged run: stage k spans [k, k + 1]
+        self._committed_tangent = None
+        self.log = NewtonLog() if log is None else log
+        self.set_stage(dirichlet, f_fixed, f_ramp)
+
+    def set_stage(self, dirichlet, f_fixed=None, f_ramp=None, *, u_start=None) -> None:
+        """Boundary conditions and loads of a (new) stage, from the present state: the prescribed values of
+        ``dirichlet`` are displacements from ``u_start`` (default: the present displacements), ``f_fixed``
+        acts from the start of the stage and ``f_ramp`` grows with its load factor t, reset to 0."""
+        n = self.disc.ndofs
+        self.dirichlet = list(dirichlet)
         for d in self.dirichlet:
             if d.dofs.min() < 0 or d.dofs.max() >= n:
                 raise ValueError(f"Dirichlet {d.name}: DOF index out of range 0..{n - 1}")
@@ -322,24 +334,21 @@ class NewtonSolver:
         for name, f in (("f_fixed", self.f_fixed), ("f_ramp", self.f_ramp)):
             if f.shape != (n,) or not np.all(np.isfinite(f)):
                 raise ValueError(f"{name}: expected a finite vector of shape ({n},), got {f.shape}")
-        self.points = PointState(material, disc.n_points, initial_stress, element_size=disc.element_size())
-        self.u = np.zeros(n)
+        self.u_start = self.u.copy() if u_start is None else np.asarray(u_start, float).copy()
         self.t = 0.0
         all_d = np.concatenate([d.dofs for d in self.dirichlet]) if self.dirichlet else np.zeros(0, np.int64)
         self.constrained = np.unique(all_d)
         self.free = np.setdiff1d(np.arange(n), self.constrained)
         self._near_nullspace = None
-        self._committed_tangent = None
         self.linear = None  # LinearSolver, made at the first solve
-        self.log = NewtonLog() if log is None else log
         self._last_increment = None  # (du, dt) of the last converged step, for the extrapolating predictor
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
         """(n_constrained,) prescribed displacements at load factor t (later conditions win)."""
-        u = np.zeros(self.disc.ndofs)
+        u = self.u_start.copy()
         for d in self.dirichlet:
-            u[d.dofs] = d.at(t)
+            u[d.dofs] = self.u_start[d.dofs] + d.at(t)
         return u[self.constrained]
 
     def external(self, t: float) -> np.ndarray:
@@ -501,7 +510,7 @@ class NewtonSolver:
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
             progress: bool = False, observers=(), fixed_steps: bool = False, descriptions: dict | None = None,
-            resume: dict | None = None, after_step=None) -> Solution:
+            resume: dict | None = None, after_step=None, close_writer: bool = True) -> Solution:
         """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
 
         writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
@@ -543,7 +552,7 @@ class NewtonSolver:
             row = self._row(0, 0, [0.0], 0, observers)
             history.append(row)
             if writer is not None:
-                writer.write(0.0, self, row)
+                writer.write(self.time_offset, self, row)
         completed, reason = False, ""
         cuts, n_step = 0, (0 if resume is None else n_step0)
         self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
@@ -579,7 +588,7 @@ class NewtonSolver:
             row["wall_time_s"] = time.perf_counter() - t0
             history.append(row)
             if writer is not None:
-                writer.write(self.t, self, row)
+                writer.write(self.time_offset + self.t, self, row)
             if bar is not None:
                 bar.update(dt)
                 bar.set_postfix_str(f"it={iters} res={residuals[-1]:.1e} cuts={cuts}")
@@ -595,7 +604,7 @@ class NewtonSolver:
             completed, reason = True, f"reached t = {t_end:g}"
         if bar is not None:
             bar.close()
-        if writer is not None:
+        if writer is not None and close_writer:
             writer.close(self, completed, reason)
         return Solution(u=self.u.copy(), stress=self.points.stress.copy(), state=self.points.state,
                         history=history, completed=completed, stop_reason=reason,

@@ -73,6 +73,18 @@ def case(cls):
 
 
 @dataclass
+class Stage:
+    """One stage of a staged run: its boundary conditions (prescribed displacements from the stage's start),
+    the loads that act from its start (``f_fixed``) and grow with its load factor (``f_ramp``), its steps."""
+
+    name: str
+    dirichlet: list
+    f_fixed: np.ndarray | None = None
+    f_ramp: np.ndarray | None = None
+    steps: int = 1
+
+
+@dataclass
 class Problem:
     """What a case builds for one material: everything the solver needs and what to observe.
 
@@ -81,6 +93,9 @@ class Problem:
     columns : meaning, unit and sign convention of each column ``observe`` gives (the history's header).
     record : what ``build`` chose (mesh, resolved defaults, ...), written to ``parameters.json``.
     data : anything ``summarise`` needs besides the solution.
+    stages : a staged run (:class:`Stage`), each from the end state of the one before; the history gets the
+        columns ``stage`` and ``time`` (stage k spans k..k+1), as does the field series. None: one stage of
+        ``dirichlet``, ``f_fixed`` and the case's ``steps``.
     """
 
     disc: object
@@ -93,6 +108,7 @@ class Problem:
     record: dict = field(default_factory=dict)
     fixed_steps: bool = False
     data: dict = field(default_factory=dict)
+    stages: list | None = None
 
 
 @dataclass(frozen=True)
@@ -165,6 +181,10 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     log = newton_log(out_dir, saved[1]["newton_log_rows"] if continuing else None)
     newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
                           initial_stress=problem.initial_stress, options=options, log=log)
+    stages = problem.stages or [Stage(case.name, problem.dirichlet, problem.f_fixed, None, case.steps)]
+    k0 = 0 if saved is None else int(saved[1].get("stage", 0))
+    if problem.stages:
+        newton.set_stage(stages[k0].dirichlet, stages[k0].f_fixed, stages[k0].f_ramp)
     run_state = None if saved is None else ck.restore(newton, *saved)
     writer = ckpt = None
     if out_dir is not None:
@@ -177,6 +197,12 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                               resume=saved[1]["writer"] if continuing else None)
         ckpt = ck.Checkpointer(out_dir, jsonable(params), every=output.checkpoint_every, keep=output.keep_checkpoints)
     first = 0 if run_state is None else run_state["n_step"]
+    if problem.stages:
+        columns = {**problem.columns, "stage": "stage of the run (0, 1, ...)",
+                   "time": "stage + its load factor (the time of the field series)"}
+        observers.append(lambda s: {"stage": s.stage, "time": s.time_offset + s.t})
+    else:
+        columns = problem.columns
     with _interruptions() as signals:
         def after_step(solver, state):
             if ckpt is not None and (ckpt.due(state["n_step"]) or signals):
@@ -187,9 +213,23 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                 return f"stopped after {max_steps} step(s) as asked (max_steps), at t = {solver.t:.6g}"
             return None
 
-        sol = newton.run(case.steps, writer=writer, progress=output.progress, observers=observers,
-                         fixed_steps=problem.fixed_steps, descriptions=problem.columns, resume=run_state,
-                         after_step=after_step)
+        for k in range(k0, len(stages)):
+            stage = stages[k]
+            if k > k0:  # the next stage starts from the end of this one (stage k0 is set up above)
+                newton.set_stage(stage.dirichlet, stage.f_fixed, stage.f_ramp)
+                run_state = {"dt": 1.0 / stage.steps, "n_step": newton.run_state["n_step"],
+                             "history": newton.run_state["history"].rows(),
+                             "residual_log": newton.run_state["residual_log"]}
+            newton.stage, newton.time_offset = k, float(k) if problem.stages else 0.0
+            sol = newton.run(stage.steps, writer=writer, progress=output.progress, observers=observers,
+                             fixed_steps=problem.fixed_steps, descriptions=columns, resume=run_state,
+                             after_step=after_step, close_writer=False)
+            if not sol.completed:
+                break
+            if problem.stages and k + 1 < len(stages):
+                sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
+    if writer is not None:
+        writer.close(newton, sol.completed, sol.stop_reason)
     if ckpt is not None and ckpt.last_step != newton.run_state["n_step"]:
         ckpt.write(newton, newton.run_state, writer)  # the end, or the last converged step of a stop
     summary = case.summarise(sol, problem)

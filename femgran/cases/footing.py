@@ -94,6 +94,8 @@ class Footing(Drainage):
     extent: float = param(4.0, "half-width of the soil domain / B (built-in mesh)")
     depth: float = param(3.0, "depth of the soil domain / B (built-in mesh)")
     volumetric: str = param("bbar", "'bbar' (projected volumetric strain, no locking) or 'standard'")
+    staged: bool = param(False, "stages: geostatic (K0 stress, gravity), the surcharge on the whole surface, "
+                                "then the footing (default: one stage, the surcharge in the in-situ stress)")
 
     def __post_init__(self):
         check_positive("width_m", self.width_m)
@@ -142,25 +144,46 @@ class Footing(Drainage):
         if qs > 0 and beside.size:
             f_fixed += d.pressure_force(beside, qs)
         sigma0 = None
-        if gamma > 0 or qs > 0:
-            sv = -(gamma * np.abs(d.quadrature_points()[:, 1]) + qs)
+        in_situ_q = 0.0 if self.staged else qs  # staged: the surcharge is a load of its own stage
+        if gamma > 0 or in_situ_q > 0:
+            sv = -(gamma * np.abs(d.quadrature_points()[:, 1]) + in_situ_q)
             sigma0 = np.zeros((d.n_points, 3, 3))
             sigma0[:, 1, 1] = sv
             sigma0[:, 0, 0] = sigma0[:, 2, 2] = K0 * sv
         fy_dofs = bcs[2].dofs
+        stages = None
+        if self.staged:
+            from femgran.cases.base import Stage
 
-        def observe(s):
-            return {"settlement_m": -float(np.mean(s.u[fy_dofs])),
+            gravity = d.body_force(np.array([0.0, -gamma])) if gamma > 0 else np.zeros(d.ndofs)
+            stages = [Stage("geostatic", bcs[:2], gravity, None, 1)]
+            if qs > 0:
+                stages.append(Stage("surcharge", bcs[:2], gravity, d.pressure_force(top_facets, qs), 5))
+            stages.append(Stage("footing", bcs, f_fixed, None, int(self.steps)))
+
+        def observe(s):  # the settlement of the footing from the start of the (footing) stage
+            return {"settlement_m": -float(np.mean(s.u[fy_dofs] - s.u_start[fy_dofs])),
                     "pressure_kPa": -float(np.sum(s.reaction[fy_dofs])) / B}
 
         mesh_name = str(self.mesh) if self.mesh else \
             f"footing_mesh(resolution={self.resolution}, extent={self.extent}, depth={self.depth})"
         return Problem(d, mat, bcs, f_fixed=f_fixed, initial_stress=sigma0, observe=observe, columns=COLUMNS,
+                       stages=stages,
                        record={"settlement_m": settle, "mesh": mesh_name, "volumetric": d.volumetric,
                                "vertical_axis": "y (up)"})
 
     def summarise(self, sol, problem) -> dict:
-        return _capacity(sol.history, float(self.width_m))
+        h = sol.history
+        if "stage" in h:  # the curve of the footing stage, from its start
+            last = h["stage"] == len(problem.stages) - 1
+            first = max(int(np.argmax(last)) - 1, 0)  # the end of the stage before is the curve's origin
+            keep = np.zeros(len(h), bool)
+            keep[first:] = True
+            # the origin: no settlement yet, and the footing carries the surcharge it replaces
+            origin = keep & ~last
+            h = {"settlement_m": np.where(origin, 0.0, h["settlement_m"])[keep],
+                 "pressure_kPa": np.where(origin, float(self.surcharge_kPa), h["pressure_kPa"])[keep]}
+        return _capacity(h, float(self.width_m))
 
     def plots(self, sol, problem, out_dir: Path) -> None:
         _plots(sol, out_dir)

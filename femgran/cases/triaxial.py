@@ -76,6 +76,8 @@ class Triaxial(Drainage):
     volumetric: str = param("standard", "'standard' or 'bbar' (hexahedra)")
     friction: float = param(0.3, "platen friction coefficient (platens 'frictional')", flags=("--platen-friction",))
     interface_thickness_m: float = param(0.001, "thickness of the frictional layer [m]")
+    consolidation_from_kPa: float | None = param(None, "a first stage consolidates the specimen isotropically from "
+                                                       "this cell pressure to p0 [kPa] (default: it starts at p0)")
 
     def __post_init__(self):
         if self.platens not in PLATENS:
@@ -83,6 +85,8 @@ class Triaxial(Drainage):
         check_positive("p0_kPa", self.p0_kPa)
         check_positive("axial_strain", self.axial_strain)
         check_steps(self.steps)
+        if self.consolidation_from_kPa is not None:
+            check_positive("consolidation_from_kPa", self.consolidation_from_kPa)
         n = int(self.resolution)
         if self.mesh is None and n < 1:
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
@@ -132,6 +136,15 @@ class Triaxial(Drainage):
                     Dirichlet(d.vector_dofs(nodes_near(d, (WIDTH, 0, 0)), [1]), 0.0)]
         lateral = np.concatenate([b[k] for k in ("left", "right", "front", "back")])
         f_cell = d.pressure_force(lateral, p0)
+        p_start, stages = p0, None
+        if self.consolidation_from_kPa is not None:  # the cell pressure acts on the top too; the platen follows it
+            from femgran.cases.base import Stage
+
+            p_start = float(self.consolidation_from_kPa)
+            cell = np.concatenate([lateral, b["top"]])
+            stages = [Stage("consolidation", [bcs[0]] + bcs[2:], d.pressure_force(cell, p_start),
+                            d.pressure_force(cell, p0 - p_start), 10),
+                      Stage("shearing", bcs, f_cell, None, int(self.steps))]
         area = WIDTH * WIDTH
         top_x, bot_x = d.vector_dofs(top, [0]), d.vector_dofs(bot, [0])
         w = d.dx.ravel()
@@ -143,12 +156,14 @@ class Triaxial(Drainage):
             pm = -np.trace(sig, axis1=1, axis2=2) / 3
             dev = sig + pm[:, None, None] * np.eye(3)
             qm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
-            return {"eps_a": -float(np.mean(s.u[bcs[1].dofs])) / HEIGHT, "q_kPa": -fz / area - p0,
+            top_z = bcs[1].dofs  # the axial strain of the (shearing) stage, from its start
+            return {"eps_a": -float(np.mean(s.u[top_z] - s.u_start[top_z])) / HEIGHT, "q_kPa": -fz / area - p0,
                     "eps_v": -float(np.average(np.trace(eps, axis1=1, axis2=2), weights=w)),
                     "top_shift_mm": 1e3 * float(np.mean(s.u[top_x]) - np.mean(s.u[bot_x])),
                     "cv_q": _weighted_cv(qm, w), "cv_sigma_zz": _weighted_cv(sig[:, 2, 2], w)}
 
-        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=COLUMNS,
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p_start * np.eye(3), observe=observe,
+                       columns=COLUMNS, stages=stages,
                        record={"mesh": str(self.mesh) if self.mesh else f"box {n}x{n}x{2 * n} hex"},
                        data={"soil": soil})
 

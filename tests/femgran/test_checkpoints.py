@@ -166,3 +166,48 @@ def test_a_run_killed_mid_run_resumes_to_the_uninterrupted_run(tmp_path, name):
     a, b = _numbers(tmp_path / "full"), _numbers(tmp_path / "killed")
     for key in a:
         np.testing.assert_array_equal(b[key], a[key])
+
+
+def test_a_geostatic_stage_then_the_load_is_the_single_stage_footing():
+    single = run(Footing(resolution=1, steps=6, settlement_m=0.01), SAND)
+    staged = run(Footing(resolution=1, steps=6, settlement_m=0.01, staged=True), SAND)
+    h = staged.history
+    assert list(h["stage"]) == [0, 0] + [1] * 6
+    np.testing.assert_allclose(h["time"][-2:], [1 + 5 / 6, 2.0], rtol=1e-14)
+    last = h["stage"] == 1
+    np.testing.assert_allclose(h["pressure_kPa"][last], single.history["pressure_kPa"][1:], rtol=1e-8)
+    np.testing.assert_allclose(staged.u, single.u, rtol=0, atol=1e-8 * np.abs(single.u).max())
+    assert staged.bearing_capacity_kPa == pytest.approx(single.bearing_capacity_kPa, rel=1e-8)
+
+
+@pytest.mark.parametrize("interrupt_at", [6, 7])  # the last step of the surcharge stage, the first of the footing
+def test_a_three_stage_run_resumes_across_a_stage_boundary(tmp_path, monkeypatch, interrupt_at):
+    case = Footing(resolution=1, steps=6, settlement_m=0.01, surcharge_kPa=10.0, staged=True)
+    full = run(case, SAND, output=Output(tmp_path / "full", plots=False))
+    assert list(full.history["stage"]) == [0, 0] + [1] * 5 + [2] * 6
+    assert full.history["pressure_kPa"][-1] > 10.0 and np.isnan(full.pressure_at_10pct_kPa)  # s < 0.1 B
+    _interrupt_at(monkeypatch, interrupt_at)
+    with pytest.raises(KeyboardInterrupt):
+        run(case, SAND, output=Output(tmp_path / "cut", plots=False))
+    monkeypatch.undo()
+    assert load(latest(tmp_path / "cut"))[1]["stage"] == (1 if interrupt_at == 6 else 2)
+    resumed = run(case, SAND, output=Output(tmp_path / "cut", plots=False), resume=True)
+    np.testing.assert_array_equal(resumed.u, full.u)
+    a, b = _numbers(tmp_path / "full"), _numbers(tmp_path / "cut")
+    for key in a:
+        np.testing.assert_array_equal(b[key], a[key])
+
+
+def test_an_isotropic_consolidation_stage_leaves_the_cpa_law_as_it_finds_it():
+    """An isotropic stress puts no shear on any plane: shearing after consolidating from 50 to 100 kPa is
+    shearing from 100 kPa (to the solver's tolerance)."""
+    from femgran.cases import Triaxial
+
+    direct = run(Triaxial(platens="smooth", resolution=1, steps=8, axial_strain=0.02), "ottawa_c109")
+    staged = run(Triaxial(platens="smooth", resolution=1, steps=8, axial_strain=0.02, consolidation_from_kPa=50.0),
+                 "ottawa_c109")
+    h = staged.history
+    shearing = h["stage"] == 1
+    assert list(h["stage"]).count(0) == 11 and shearing.sum() == 8
+    np.testing.assert_allclose(h["eps_a"][shearing], direct.history["eps_a"][1:], rtol=1e-12)
+    assert np.abs(h["q_kPa"][shearing] - direct.history["q_kPa"][1:]).max() < 1e-4 * direct.peak_q_kPa
