@@ -193,7 +193,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
             imperfection: float = 0.02, volumetric: str = "bbar", out=None, progress: bool = False,
             linear_solver: str | None = None, write_every: int = 1, plots: bool = True, tol: float | None = None,
             weak_zone: float = 0.0, weak_zone_height: float = 0.25,
-            platens: str = "smooth", solver=None):
+            platens: str = "smooth", solver=None, checkpoint_every: int = 0, resume: bool = False, **case_fields):
     """Plane-strain biaxial test of a specimen W x 2W with a geometric imperfection.
 
     ``run(Biaxial(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
@@ -201,6 +201,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     parameter file or None (CPA ``ottawa_c109``, :func:`material.factory.make_material`).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
     ``tol`` (relative residual tolerance) and ``linear_solver`` replace those fields when given.
+    ``checkpoint_every`` (a checkpoint every N converged steps) and ``resume`` (continue the run in ``out``
+    from its last checkpoint) are those of :func:`femgran.cases.base.run`; ``case_fields``: the case's other
+    fields (e.g. ``drainage="undrained"``).
 
     Returns
     -------
@@ -210,9 +213,9 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
     ``localised``; history columns ``eps_a``, ``eps_v``, ``q_kPa`` (s1 - s3, compression +).
     """
     case = Biaxial(p0_kPa, float(alpha_deg), width_m, axial_strain, steps, resolution, order, imperfection,
-                   volumetric, weak_zone, weak_zone_height, platens)
+                   volumetric, weak_zone, weak_zone_height, platens, **case_fields)
     return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
-               output=Output(out, progress, write_every, plots))
+               output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)
 
 
 def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> dict:

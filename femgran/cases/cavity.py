@@ -116,7 +116,8 @@ class Cavity(Drainage):
                      xlabel="cavity expansion u_a / a [-]", ylabel="cavity pressure [kPa]", title="cylindrical cavity")
 
 
-def cavity(material=None, *, out=None, solver=None, progress: bool = False, plots: bool = True, **geometry):
-    """``run(Cavity(**geometry), material, ...)``: the pressure-expansion curve of a cylindrical cavity."""
-    return run(Cavity(**geometry), material, solver=solver_options(solver),
-               output=Output(out, progress, 1, plots))
+def cavity(material=None, *, out=None, solver=None, progress: bool = False, plots: bool = True,
+           checkpoint_every: int = 0, resume: bool = False, **fields):
+    """``run(Cavity(**fields), material, ...)``: the pressure-expansion curve of a cylindrical cavity."""
+    return run(Cavity(**fields), material, solver=solver_options(solver),
+               output=Output(out, progress, 1, plots, checkpoint_every), resume=resume)

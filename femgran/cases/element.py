@@ -94,7 +94,8 @@ class Element(Drainage):
 
 def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
             axial_strain: float = 0.01, steps: int = 50, tol: float | None = None, solver=None, out=None,
-            progress: bool = False, write_every: int = 1, plots: bool = True):
+            progress: bool = False, write_every: int = 1, plots: bool = True, checkpoint_every: int = 0,
+            resume: bool = False, **case_fields):
     """Drained triaxial compression of one hexahedral element.
 
     ``run(Element(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
@@ -102,6 +103,9 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
     parameter file or None (CPA ``ottawa_c109`` with axes for ``alpha_deg``).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
     ``tol`` replaces its tolerance when given.
+    ``checkpoint_every`` (a checkpoint every N converged steps) and ``resume`` (continue the run in ``out``
+    from its last checkpoint) are those of :func:`femgran.cases.base.run`; ``case_fields``: the case's other
+    fields (e.g. ``drainage="undrained"``).
 
     Returns
     -------
@@ -109,5 +113,6 @@ def element(material=None, path: str = "triaxial", *, p0_kPa: float = 100.0, alp
     (axial minus mean lateral stress, compression +), ``p_kPa`` and the shear strains ``gamma_xz``,
     ``gamma_yz`` (engineering, tension-positive convention).
     """
-    case = Element(path, p0_kPa, float(alpha_deg), axial_strain, steps)
-    return run(case, material, solver=solver_options(solver, tol=tol), output=Output(out, progress, write_every, plots))
+    case = Element(path, p0_kPa, float(alpha_deg), axial_strain, steps, **case_fields)
+    return run(case, material, solver=solver_options(solver, tol=tol),
+               output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)

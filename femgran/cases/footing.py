@@ -194,7 +194,7 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
             K0: float = 0.5, mesh=None, resolution: int = 3, order: int = 2, extent: float = 4.0,
             depth: float = 3.0, volumetric: str = "bbar", out=None, progress: bool = False,
             linear_solver: str | None = None, write_every: int = 1, plots: bool = True, tol: float | None = None,
-            solver=None):
+            solver=None, checkpoint_every: int = 0, resume: bool = False, **case_fields):
     """Load-settlement response and bearing capacity of a rigid strip footing (plane strain).
 
     ``run(Footing(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
@@ -203,6 +203,9 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
     ``tol`` (relative residual tolerance, out-of-balance force / reaction) and ``linear_solver`` replace
     the corresponding fields when given.
+    ``checkpoint_every`` (a checkpoint every N converged steps) and ``resume`` (continue the run in ``out``
+    from its last checkpoint) are those of :func:`femgran.cases.base.run`; ``case_fields``: the case's other
+    fields (e.g. ``drainage="undrained"``).
 
     Returns
     -------
@@ -210,9 +213,9 @@ def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surc
     and history columns ``settlement_m``, ``pressure_kPa``.
     """
     case = Footing(width_m, unit_weight, surcharge_kPa, bool(rough), float(alpha_deg), settlement_m, steps, K0,
-                   None if mesh is None else str(mesh), resolution, order, extent, depth, volumetric)
+                   None if mesh is None else str(mesh), resolution, order, extent, depth, volumetric, **case_fields)
     return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
-               output=Output(out, progress, write_every, plots))
+               output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)
 
 
 def _capacity(history, B: float) -> dict:

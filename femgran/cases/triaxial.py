@@ -193,7 +193,8 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
              axial_strain: float = 0.15, steps: int = 60, mesh=None, resolution: int = 4, order: int = 1,
              out=None, progress: bool = False, linear_solver: str | None = None, write_every: int = 1,
              plots: bool = True, volumetric: str = "standard", friction: float = 0.3,
-             interface_thickness_m: float = 0.001, tol: float | None = None, solver=None):
+             interface_thickness_m: float = 0.001, tol: float | None = None, solver=None, checkpoint_every: int = 0,
+             resume: bool = False, **case_fields):
     """Drained triaxial compression of the 50 x 50 x 100 mm specimen between rigid platens.
 
     ``run(Triaxial(...), material, solver=..., output=Output(out, progress, write_every, plots))`` with
@@ -201,15 +202,19 @@ def triaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, plate
     parameter file or None (CPA ``ottawa_c109``, :func:`material.factory.make_material`).
     solver : :class:`femgran.solver.SolverOptions` or a mapping of its fields (None: its defaults);
     ``tol`` and ``linear_solver`` (:data:`femgran.solver.LINEAR_SOLVERS`) replace those fields when given.
+    ``checkpoint_every`` (a checkpoint every N converged steps) and ``resume`` (continue the run in ``out``
+    from its last checkpoint) are those of :func:`femgran.cases.base.run`; ``case_fields``: the case's other
+    fields (e.g. ``drainage="undrained"``).
 
     Returns
     -------
     femgran.solver.Solution (``history``, ``out_dir``, ``u``, ``stress``, ``state``, ``peak_q_kPa``).
     """
     case = Triaxial(p0_kPa, float(alpha_deg), platens, axial_strain, steps, None if mesh is None else str(mesh),
-                    resolution, order, volumetric, friction, interface_thickness_m)
+                    resolution, order, volumetric, friction, interface_thickness_m,
+                    **case_fields)
     return run(case, material, solver=solver_options(solver, linear_solver=linear_solver, tol=tol),
-               output=Output(out, progress, write_every, plots))
+               output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)
 
 
 def _with_interface_layers(mat, d, mu, ti):

@@ -211,3 +211,22 @@ def test_an_isotropic_consolidation_stage_leaves_the_cpa_law_as_it_finds_it():
     assert list(h["stage"]).count(0) == 11 and shearing.sum() == 8
     np.testing.assert_allclose(h["eps_a"][shearing], direct.history["eps_a"][1:], rtol=1e-12)
     assert np.abs(h["q_kPa"][shearing] - direct.history["q_kPa"][1:]).max() < 1e-4 * direct.peak_q_kPa
+
+
+def test_replay_of_a_step_whose_points_fail_reports_them(tmp_path):
+    """A law given one local iteration and no continuation cannot take the footing's plastic steps: its
+    points fail, the run stops, and the replay from the checkpoint finds the same points and their files."""
+    from femgran.cases import footing
+    from material import CPAModel
+    from material.factory import plane_strain_axes
+
+    brittle = CPAModel("ottawa_c109", axes=plane_strain_axes(0.0), maxit=1, max_halvings=0)
+    stopped = footing(brittle, resolution=1, steps=4, settlement_m=0.02, out=tmp_path / "run", plots=False,
+                      checkpoint_every=1, solver={"max_cuts": 1})
+    assert not stopped.completed and "failed" in stopped.stop_reason
+    replay = run(Footing(resolution=1, steps=4, settlement_m=0.02), brittle, solver={"max_cuts": 1},
+                 output=Output(tmp_path / "replay", plots=False), resume=tmp_path / "run", max_steps=1)
+    assert replay.stop_reason == stopped.stop_reason.replace(str(tmp_path / "run"), str(tmp_path / "replay"))
+    log = read_table(tmp_path / "replay" / "newton_log.csv")
+    assert log["failed_points"].max() > 0
+    assert list((tmp_path / "replay" / "failed_points").glob("*.npz"))  # replay files of the failed points
