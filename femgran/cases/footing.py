@@ -172,21 +172,24 @@ class Footing(Drainage):
                        record={"settlement_m": settle, "mesh": mesh_name, "volumetric": d.volumetric,
                                "vertical_axis": "y (up)"})
 
-    def summarise(self, sol, problem) -> dict:
+    def curve(self, sol, problem) -> dict:
+        """The load-settlement curve of the footing (of its stage, from its start, in a staged run)."""
         h = sol.history
-        if "stage" in h:  # the curve of the footing stage, from its start
-            last = h["stage"] == len(problem.stages) - 1
-            first = max(int(np.argmax(last)) - 1, 0)  # the end of the stage before is the curve's origin
-            keep = np.zeros(len(h), bool)
-            keep[first:] = True
-            # the origin: no settlement yet, and the footing carries the surcharge it replaces
-            origin = keep & ~last
-            h = {"settlement_m": np.where(origin, 0.0, h["settlement_m"])[keep],
-                 "pressure_kPa": np.where(origin, float(self.surcharge_kPa), h["pressure_kPa"])[keep]}
-        return _capacity(h, float(self.width_m))
+        if "stage" not in h:
+            return {"settlement_m": h["settlement_m"], "pressure_kPa": h["pressure_kPa"]}
+        last = h["stage"] == len(problem.stages) - 1
+        first = max(int(np.argmax(last)) - 1, 0)  # the end of the stage before is the curve's origin
+        keep = np.zeros(len(h), bool)
+        keep[first:] = True
+        origin = keep & ~last  # no settlement yet, and the footing carries the surcharge it replaces
+        return {"settlement_m": np.where(origin, 0.0, h["settlement_m"])[keep],
+                "pressure_kPa": np.where(origin, float(self.surcharge_kPa), h["pressure_kPa"])[keep]}
+
+    def summarise(self, sol, problem) -> dict:
+        return _capacity(self.curve(sol, problem), float(self.width_m))
 
     def plots(self, sol, problem, out_dir: Path) -> None:
-        _plots(sol, out_dir)
+        _plots(sol, out_dir, self.curve(sol, problem))
 
 
 def footing(material=None, width_m: float = 1.0, unit_weight: float = 18.0, surcharge_kPa: float = 0.0,
@@ -234,10 +237,10 @@ def _capacity(history, B: float) -> dict:
             "pressure_at_10pct_kPa": at10, "plateau_ratio": ratio}
 
 
-def _plots(sol, out_dir: Path) -> None:
+def _plots(sol, out_dir: Path, curve: dict) -> None:
     from femgran.output import plot_field, plot_history, read_pvd
 
-    plot_history(sol.history, "settlement_m", "pressure_kPa", out_dir / "load_settlement.png",
+    plot_history(curve, "settlement_m", "pressure_kPa", out_dir / "load_settlement.png",
                  xlabel="settlement [m]", ylabel="mean footing pressure [kPa]", title="strip footing")
     entries = read_pvd(out_dir / "footing.pvd")
     if entries:
