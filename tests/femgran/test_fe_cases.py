@@ -87,7 +87,9 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     262.5 kPa."""
     iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
                                              A=1e-5, E=60000.0)
-    runs = {"cpa": CPAModel(iso), "dp30": material.DruckerPrager(60000.0, 0.3, 0.0, 30.0),
+    from material.factory import plane_strain_axes
+
+    runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(60000.0, 0.3, 0.0, 30.0),
             "dp30.5": material.DruckerPrager(60000.0, 0.3, 0.0, 30.5)}
     p = {}
     for name, mat in runs.items():
