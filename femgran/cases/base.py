@@ -82,7 +82,30 @@ class Stage:
     f_fixed: np.ndarray | None = None
     f_ramp: np.ndarray | None = None
     steps: int = 1
+    elastic: bool = False  # linear elasticity with the law's E and nu; at the end the law starts from the stress
 
+
+def _elastic_twin(law):
+    """Linear elasticity with the E and nu of ``law`` (an elastic stage: gravity switched on)."""
+    from material import LinearElastic
+
+    inner = getattr(law, "law", law)  # an Undrained law: its skeleton
+    E = getattr(inner, "E", None) or getattr(getattr(inner, "params", None), "E", None)
+    nu = getattr(inner, "nu", None) or getattr(getattr(inner, "params", None), "nu", None)
+    if E is None or nu is None:
+        raise ValueError(f"an elastic stage needs the material's E and nu; {type(law).__name__} has none")
+    return LinearElastic(float(E), float(nu))
+
+
+def _use_material(newton, law, *, restart: bool) -> None:
+    """Give the solver ``law`` for the next stage; ``restart``: its state starts from the present stress
+    (``initial_state(stress=...)``, as a law switched on after an elastic stage)."""
+    pts = newton.points
+    newton.material = pts.material = law
+    if restart:
+        pts.state = law.initial_state(pts.n_points, stress=pts.stress, element_size=newton.disc.element_size())
+        pts.revert()
+    newton._committed_tangent = None
 
 @dataclass
 class Problem:
@@ -183,8 +206,11 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                           initial_stress=problem.initial_stress, options=options, log=log)
     stages = problem.stages or [Stage(case.name, problem.dirichlet, problem.f_fixed, None, case.steps)]
     k0 = 0 if saved is None else int(saved[1].get("stage", 0))
+    law = problem.material
     if problem.stages:
         newton.set_stage(stages[k0].dirichlet, stages[k0].f_fixed, stages[k0].f_ramp)
+        if stages[k0].elastic:
+            _use_material(newton, _elastic_twin(law), restart=saved is None)
     run_state = None if saved is None else ck.restore(newton, *saved)
     writer = ckpt = None
     if out_dir is not None:
@@ -217,6 +243,10 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
             stage = stages[k]
             if k > k0:  # the next stage starts from the end of this one (stage k0 is set up above)
                 newton.set_stage(stage.dirichlet, stage.f_fixed, stage.f_ramp)
+                if stage.elastic:
+                    _use_material(newton, _elastic_twin(law), restart=True)
+                elif stages[k - 1].elastic:
+                    _use_material(newton, law, restart=True)
                 run_state = {"dt": 1.0 / stage.steps, "n_step": newton.run_state["n_step"],
                              "history": newton.run_state["history"].rows(),
                              "residual_log": newton.run_state["residual_log"]}

@@ -96,6 +96,8 @@ class Footing(Drainage):
     volumetric: str = param("bbar", "'bbar' (projected volumetric strain, no locking) or 'standard'")
     staged: bool = param(False, "stages: geostatic (K0 stress, gravity), the surcharge on the whole surface, "
                                 "then the footing (default: one stage, the surcharge in the in-situ stress)")
+    geostatic: str = param("k0", "staged: 'k0' (the in-situ stress K0 gamma |y| from the start) or 'gravity' "
+                                 "(gravity switched on in an elastic stage, K0 = nu / (1 - nu), then the law)")
 
     def __post_init__(self):
         check_positive("width_m", self.width_m)
@@ -109,6 +111,10 @@ class Footing(Drainage):
             raise ValueError(f"order = {self.order!r}: allowed 1 or 2")
         if self.volumetric not in ("bbar", "standard"):
             raise ValueError(f"volumetric = {self.volumetric!r}: allowed 'bbar' or 'standard'")
+        if self.geostatic not in ("k0", "gravity"):
+            raise ValueError(f"geostatic = {self.geostatic!r}: allowed 'k0' or 'gravity'")
+        if self.geostatic == "gravity" and not self.staged:
+            raise ValueError("geostatic = 'gravity' switches gravity on in a stage of its own: needs staged = true")
         if self.mesh is None and int(self.resolution) < 1:
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
 
@@ -145,7 +151,7 @@ class Footing(Drainage):
             f_fixed += d.pressure_force(beside, qs)
         sigma0 = None
         in_situ_q = 0.0 if self.staged else qs  # staged: the surcharge is a load of its own stage
-        if gamma > 0 or in_situ_q > 0:
+        if (gamma > 0 or in_situ_q > 0) and self.geostatic == "k0":
             sv = -(gamma * np.abs(d.quadrature_points()[:, 1]) + in_situ_q)
             sigma0 = np.zeros((d.n_points, 3, 3))
             sigma0[:, 1, 1] = sv
@@ -156,7 +162,8 @@ class Footing(Drainage):
             from femgran.cases.base import Stage
 
             gravity = d.body_force(np.array([0.0, -gamma])) if gamma > 0 else np.zeros(d.ndofs)
-            stages = [Stage("geostatic", bcs[:2], gravity, None, 1)]
+            stages = [Stage("geostatic", bcs[:2], gravity, None, 1) if self.geostatic == "k0" else
+                      Stage("gravity", bcs[:2], None, gravity, 1, elastic=True)]
             if qs > 0:
                 stages.append(Stage("surcharge", bcs[:2], gravity, d.pressure_force(top_facets, qs), 5))
             stages.append(Stage("footing", bcs, f_fixed, None, int(self.steps)))

@@ -230,3 +230,38 @@ def test_replay_of_a_step_whose_points_fail_reports_them(tmp_path):
     log = read_table(tmp_path / "replay" / "newton_log.csv")
     assert log["failed_points"].max() > 0
     assert list((tmp_path / "replay" / "failed_points").glob("*.npz"))  # replay files of the failed points
+
+
+def test_switching_gravity_on_elastically_is_the_k0_start_with_k0_from_poisson():
+    """geostatic = "gravity": an elastic stage loads the layer by its weight (sigma_yy = -gamma |y|,
+    sigma_xx = nu / (1 - nu) sigma_yy in this confined column), then the law starts from that stress; the
+    footing on it is the footing on the K0 start with K0 = nu / (1 - nu)."""
+    nu, gamma = 0.33, 18.0
+    case = Footing(resolution=1, steps=6, settlement_m=0.01, staged=True, geostatic="gravity")
+    first = run(case, SAND, max_steps=1)  # the gravity stage alone
+    assert first.history["stage"][-1] == 0
+    from material import LinearElastic
+
+    y = case.build(LinearElastic(6000.0, nu)).disc.quadrature_points()[:, 1]
+    sig = first.stress
+    np.testing.assert_allclose(sig[:, 1, 1], -gamma * np.abs(y), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(sig[:, 0, 0], nu / (1 - nu) * sig[:, 1, 1], rtol=1e-6, atol=1e-6)
+    gravity = run(case, SAND)
+    k0 = run(Footing(resolution=1, steps=6, settlement_m=0.01, staged=True, K0=nu / (1 - nu)), SAND)
+    np.testing.assert_allclose(gravity.history["pressure_kPa"][-6:], k0.history["pressure_kPa"][-6:], rtol=1e-9)
+    np.testing.assert_allclose(gravity.stress, k0.stress, rtol=0, atol=1e-9 * np.abs(k0.stress).max())
+    with pytest.raises(ValueError, match="geostatic = 'gravity' switches gravity on in a stage of its own"):
+        Footing(geostatic="gravity")
+
+
+@pytest.mark.parametrize("interrupt_at", [1, 2])  # the end of the elastic gravity stage, the first step after it
+def test_a_run_with_an_elastic_stage_resumes_across_the_switch(tmp_path, monkeypatch, interrupt_at):
+    case = Footing(resolution=1, steps=4, settlement_m=0.01, surcharge_kPa=10.0, staged=True, geostatic="gravity")
+    full = run(case, SAND, output=Output(tmp_path / "full", plots=False))
+    _interrupt_at(monkeypatch, interrupt_at)
+    with pytest.raises(KeyboardInterrupt):
+        run(case, SAND, output=Output(tmp_path / "cut", plots=False))
+    monkeypatch.undo()
+    resumed = run(case, SAND, output=Output(tmp_path / "cut", plots=False), resume=True)
+    np.testing.assert_array_equal(resumed.u, full.u)
+    np.testing.assert_array_equal(resumed.stress, full.stress)
