@@ -2,7 +2,8 @@
 
 A checkpoint is a pair in ``<run folder>/checkpoints/``: ``step_NNNNNN.npz`` (numpy arrays: the
 displacements ``u``, the committed stress, every key of the material state as ``state__<key>``, the
-committed tangent and the last increment the predictor extrapolates) and ``step_NNNNNN.json`` (the load
+committed tangent, as its 36 independent entries when it has both minor symmetries exactly, and the
+last increment the predictor extrapolates) and ``step_NNNNNN.json`` (the load
 factor and step size, the step count, the history rows so far, the Newton residuals, the state of the
 field series and of the Newton log, and the identity of the inputs: the run's parameter record and the
 package version). No pickle: ``np.load(..., allow_pickle=False)`` and ``json`` read them.
@@ -25,6 +26,34 @@ from material.table import jsonable
 __all__ = ["Checkpointer", "latest", "load", "restore", "identity_changes", "FORMAT"]
 
 FORMAT = "femgran-checkpoint/1"
+
+
+_PAIRS = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+_I = np.array([p[0] for p in _PAIRS])
+_J = np.array([p[1] for p in _PAIRS])
+
+
+def _pack_tangent(T: np.ndarray) -> tuple[str, np.ndarray]:
+    """The committed tangent in as few numbers as keep it exactly: the 36 independent entries when it has
+    both minor symmetries to the bit (the CPA kernel's does), otherwise all 81."""
+    T = np.asarray(T)
+    if np.array_equal(T, T.swapaxes(1, 2)) and np.array_equal(T, T.swapaxes(3, 4)):
+        return "tangent36", np.ascontiguousarray(T[:, _I[:, None], _J[:, None], _I[None, :], _J[None, :]])
+    return "tangent", T
+
+
+def _unpack_tangent(arrays: dict) -> np.ndarray | None:
+    if "tangent" in arrays:
+        return arrays["tangent"].copy()
+    if "tangent36" in arrays:
+        t36 = arrays["tangent36"]
+        T = np.empty((t36.shape[0], 3, 3, 3, 3))
+        for a, (i, j) in enumerate(_PAIRS):
+            for b, (k, l) in enumerate(_PAIRS):
+                v = t36[:, a, b]
+                T[:, i, j, k, l] = T[:, j, i, k, l] = T[:, i, j, l, k] = T[:, j, i, l, k] = v
+        return T
+    return None
 
 
 def _paths(folder: Path, n_step: int) -> tuple[Path, Path]:
@@ -88,7 +117,7 @@ def restore(solver, arrays: dict, info: dict) -> dict:
     pts.stress = arrays["stress"].copy()
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
     pts.revert()
-    solver._committed_tangent = arrays["tangent"].copy() if "tangent" in arrays else None
+    solver._committed_tangent = _unpack_tangent(arrays)
     solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"])) if "last_du" in arrays else None
     return {"dt": float(info["dt"]), "n_step": int(info["n_step"]), "history": info["history"],
             "residual_log": info["residual_log"]}
@@ -96,33 +125,48 @@ def restore(solver, arrays: dict, info: dict) -> dict:
 
 class Checkpointer:
     """Writes the checkpoints of one run (module docstring) every ``every`` converged steps (0: only when
-    :meth:`write` is called, at the end or a stop), keeping the last ``keep``."""
+    :meth:`write` is called, at the end or a stop), keeping the last ``keep``.
+
+    The run pays only for a copy of its state: the files are written by a background thread while the next
+    steps run (one checkpoint at a time, in order; :meth:`wait` returns when the last one is on disk, and
+    :meth:`write` waits for the one before). Measured on the 128,000-point specimen (``python
+    benchmarks/checkpoint.py --resolution 20``, 54,243 DOFs): one Newton iteration 3.7 s; the copy the run
+    waits for 0.22 s (0.06 of an iteration); the files, 104 MiB, 0.31 s in the background (0.08). Written
+    in the foreground the files took 0.35-0.45 s, 0.10-0.12 of an iteration.
+    """
 
     def __init__(self, run_folder, identity: dict, every: int = 0, keep: int = 2):
+        from concurrent.futures import ThreadPoolExecutor
+
         self.folder = Path(run_folder) / "checkpoints"
         self.identity = jsonable(identity)
         self.every = int(every)
         self.keep = max(int(keep), 1)
         self.last_step = None
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="femgran-checkpoint")
+        self._pending = None
 
     def due(self, n_step: int) -> bool:
         return self.every > 0 and n_step % self.every == 0
 
     def write(self, solver, run_state: dict, writer=None) -> Path:
-        """A checkpoint of the solver's committed state after ``run_state["n_step"]`` converged steps."""
+        """A checkpoint of the solver's committed state after ``run_state["n_step"]`` converged steps (the
+        arrays are copied now; the files follow in the background, see the class docstring)."""
         from material.version import __version__
 
+        self.wait()
         n = int(run_state["n_step"])
         self.folder.mkdir(parents=True, exist_ok=True)
-        npz, js = _paths(self.folder, n)
         pts = solver.points
         arrays = {"u": solver.u, "u_start": solver.u_start, "stress": pts.stress,
                   **{f"state__{k}": np.asarray(v) for k, v in pts.state.items()}}
         if solver._committed_tangent is not None:
-            arrays["tangent"] = solver._committed_tangent
+            key, packed = _pack_tangent(solver._committed_tangent)
+            arrays[key] = packed
         last = solver._last_increment
         if last is not None:
             arrays["last_du"] = last[0]
+        arrays = {k: np.array(v, copy=True) for k, v in arrays.items()}  # the run goes on changing its own
         info = {"format": FORMAT, "femgran_version": __version__, "t": solver.t, "dt": run_state["dt"], "n_step": n,
                 "stage": int(getattr(solver, "stage", 0)),
                 "last_dt": None if last is None else float(last[1]),
@@ -131,15 +175,30 @@ class Checkpointer:
                 "writer": None if writer is None else writer.state(),
                 "newton_log_rows": solver.log.rows_written if hasattr(solver.log, "rows_written") else None,
                 "identity": self.identity}
+        text = json.dumps(jsonable(info)) + "\n"
+        self.last_step = n
+        self._pending = self._pool.submit(self._write_files, n, arrays, text)
+        return _paths(self.folder, n)[1]
+
+    def _write_files(self, n: int, arrays: dict, text: str) -> None:
+        npz, js = _paths(self.folder, n)
         tmp_npz = npz.with_name(".tmp_" + npz.name)
         with open(tmp_npz, "wb") as fh:
             np.savez(fh, **arrays)
         os.replace(tmp_npz, npz)
         tmp_js = js.with_name(".tmp_" + js.name)
-        tmp_js.write_text(json.dumps(jsonable(info)) + "\n")
+        tmp_js.write_text(text)
         os.replace(tmp_js, js)  # the checkpoint exists from here on
-        self.last_step = n
         for old in sorted(self.folder.glob("step_*.json"))[:-self.keep]:
             old.with_suffix(".npz").unlink(missing_ok=True)
             old.unlink(missing_ok=True)
-        return js
+
+    def wait(self) -> None:
+        """Return when the checkpoint being written is on disk (an error in writing it is raised here)."""
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            pending.result()
+
+    def close(self) -> None:
+        self.wait()
+        self._pool.shutdown(wait=True)

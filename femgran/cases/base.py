@@ -260,8 +260,10 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                 sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
     if writer is not None:
         writer.close(newton, sol.completed, sol.stop_reason)
-    if ckpt is not None and ckpt.last_step != newton.run_state["n_step"]:
-        ckpt.write(newton, newton.run_state, writer)  # the end, or the last converged step of a stop
+    if ckpt is not None:
+        if ckpt.last_step != newton.run_state["n_step"]:
+            ckpt.write(newton, newton.run_state, writer)  # the end, or the last converged step of a stop
+        ckpt.close()  # every checkpoint on disk before the run returns
     summary = case.summarise(sol, problem)
     sol.extra.update(params=params, **summary)
     if out_dir is not None:
