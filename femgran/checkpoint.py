@@ -106,20 +106,20 @@ def identity_changes(saved: dict, now: dict, prefix: str = "") -> list[str]:
     return changed
 
 
-def restore(solver, arrays: dict, info: dict) -> dict:
+def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     """Put the solver where the checkpoint was (its stage set already, :meth:`NewtonSolver.set_stage`); returns
     the run state the solver's ``run(resume=...)`` takes."""
     pts = solver.points
     solver.u = arrays["u"].copy()
     if "u_start" in arrays:
         solver.u_start = arrays["u_start"].copy()
-    solver.t = float(info["t"])
+    solver.t = float(info["t"]) * scale  # scale: old end / new end of an extended loading stage
     pts.stress = arrays["stress"].copy()
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
     pts.revert()
     solver._committed_tangent = _unpack_tangent(arrays)
-    solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"])) if "last_du" in arrays else None
-    return {"dt": float(info["dt"]), "n_step": int(info["n_step"]), "history": info["history"],
+    solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"]) * scale) if "last_du" in arrays else None
+    return {"dt": float(info["dt"]) * scale, "n_step": int(info["n_step"]), "history": info["history"],
             "residual_log": info["residual_log"]}
 
 

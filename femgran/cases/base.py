@@ -196,10 +196,11 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         problem.columns = {**problem.columns, "pore_pressure_kPa": "mean excess pore pressure [kPa], compression +"}
     params = {"case": case.name, **case_record(case), **problem.record, "solver": options.to_dict(),
               "material": material_record(problem.material), "ndofs": problem.disc.ndofs}
-    saved = None
+    saved, scale = None, 1.0
     elsewhere = not isinstance(resume, bool) and resume is not None
     if resume is not False and resume is not None:
-        saved = _checkpoint_to_resume(Path(resume) if elsewhere else out_dir, params)
+        saved, scale = _checkpoint_to_resume(Path(resume) if elsewhere else out_dir, params,
+                                             getattr(case, "extend", None))
     continuing = saved is not None and not elsewhere  # the same folder: its files go on
     log = newton_log(out_dir, saved[1]["newton_log_rows"] if continuing else None)
     newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
@@ -211,12 +212,17 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         newton.set_stage(stages[k0].dirichlet, stages[k0].f_fixed, stages[k0].f_ramp)
         if stages[k0].elastic:
             _use_material(newton, _elastic_twin(law), restart=saved is None)
-    run_state = None if saved is None else ck.restore(newton, *saved)
+    if saved is not None and scale != 1.0:
+        if k0 != len(stages) - 1:
+            scale = 1.0  # the loading stage has not begun: it starts at 0 whatever its end
+        else:
+            _rescale_history(saved[1], scale, out_dir if continuing else None)
+    run_state = None if saved is None else ck.restore(newton, *saved, scale=scale if saved else 1.0)
     writer = ckpt = None
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
 
-        if not continuing:
+        if not continuing or scale != 1.0:  # a new run, or one whose end moved
             write_parameters(out_dir / "parameters.json", params)
             _write_case_file(out_dir, case, material, options, output)
         writer = SeriesWriter(out_dir, problem.disc, name=case.name, every=output.write_every,
@@ -281,7 +287,36 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     return sol
 
 
-def _checkpoint_to_resume(out_dir, params: dict):
+def _rescale_history(info: dict, scale: float, out_dir) -> None:
+    """A resumed run whose loading stage was extended (its end moved): the load factors already recorded,
+    in the history, the series and the files, are rescaled so that t keeps its meaning (the fraction of
+    the new end)."""
+    stage = int(info.get("stage", 0))
+    for row in info["history"]:
+        if int(row.get("stage", 0)) == stage:
+            row["load_factor"] = row["load_factor"] * scale
+            if "time" in row:
+                row["time"] = stage + (row["time"] - stage) * scale
+    if info.get("writer"):
+        info["writer"]["datasets"] = [[stage + (t - stage) * scale if t >= stage else t, f]
+                                      for t, f in info["writer"]["datasets"]]
+        if info["writer"]["last_written"] is not None and info["writer"]["last_written"] >= stage:
+            info["writer"]["last_written"] = stage + (info["writer"]["last_written"] - stage) * scale
+    if out_dir is not None:  # history.csv is rewritten with the rescaled rows (the writer then appends)
+        from material.table import Table, read_table
+
+        path = Path(out_dir) / "history.csv"
+        old = read_table(path)
+        table = Table(title=old.title, descriptions=old.descriptions, metadata=old.metadata, convention=old.convention)
+        for row in info["history"]:
+            table.append(row)
+        table.write_csv(path)
+        info["writer"]["count"] = len(info["history"])
+
+
+def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None):
+    """The checkpoint to resume from and the scale of its load factor: 1, or old end / new end when the only
+    change is the case's ``extend`` field (e.g. a larger target settlement)."""
     from femgran import checkpoint as ck
     from material.table import jsonable
 
@@ -292,10 +327,19 @@ def _checkpoint_to_resume(out_dir, params: dict):
     if path is None:
         raise FileNotFoundError(f"resume {out_dir}: no checkpoint to continue from ({out_dir}/checkpoints is empty)")
     arrays, info = ck.load(path)
-    changes = ck.identity_changes(info["identity"], jsonable(params))
+    now = jsonable(params)
+    changes = ck.identity_changes(info["identity"], now)
+    scale = 1.0
+    if extend and changes and all(c.startswith(f"{extend}:") for c in changes):
+        old, new = info["identity"][extend], now[extend]
+        if isinstance(old, (int, float)) and isinstance(new, (int, float)) and new > 0:
+            scale, changes = old / new, []
     if changes:
-        raise ValueError(f"resume {out_dir}: the inputs differ from those of the checkpoint: " + "; ".join(changes))
-    return arrays, info
+        raise ValueError(f"resume {out_dir}: the inputs differ from those of the checkpoint: " + "; ".join(changes)
+                         + (f" (only {extend} may change on a resume: the loading then goes on to its new end)"
+                            if extend else ""))
+    info["identity"] = now
+    return (arrays, info), scale
 
 
 def _write_case_file(out_dir: Path, case, material, options, output: Output) -> None:

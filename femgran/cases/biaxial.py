@@ -99,6 +99,7 @@ class Biaxial(Drainage):
 
     name: ClassVar[str] = "biaxial"
     plane_strain: ClassVar[bool] = True
+    extend: ClassVar[str] = "axial_strain"  # may change on a resume: the loading goes on to the new end
     headline: ClassVar[str] = "band_angle_deg"
     compare: ClassVar[tuple] = (("eps_a", "q_kPa"),)
 

@@ -47,6 +47,7 @@ class Cavity(Drainage):
 
     name: ClassVar[str] = "cavity"
     plane_strain: ClassVar[bool] = True
+    extend: ClassVar[str] = "expansion"  # may change on a resume: the loading goes on to the new end
     headline: ClassVar[str] = "final_pressure_kPa"
     compare: ClassVar[tuple] = (("expansion", "pressure_kPa"),)
 

@@ -39,6 +39,7 @@ class Element(Drainage):
 
     name: ClassVar[str] = "element"
     plane_strain: ClassVar[bool] = False
+    extend: ClassVar[str] = "axial_strain"  # may change on a resume: the loading goes on to the new end
     headline: ClassVar[str] = "peak_q_kPa"
     compare: ClassVar[tuple] = (("eps_a", "q_kPa"),)
 

@@ -77,6 +77,7 @@ class Footing(Drainage):
 
     name: ClassVar[str] = "footing"
     plane_strain: ClassVar[bool] = True
+    extend: ClassVar[str] = "settlement_m"  # may change on a resume: the loading goes on to the new end
     headline: ClassVar[str] = "bearing_capacity_kPa"
     compare: ClassVar[tuple] = (("settlement_m", "pressure_kPa"),)
 

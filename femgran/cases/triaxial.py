@@ -62,6 +62,7 @@ class Triaxial(Drainage):
 
     name: ClassVar[str] = "triaxial"
     plane_strain: ClassVar[bool] = False
+    extend: ClassVar[str] = "axial_strain"  # may change on a resume: the loading goes on to the new end
     headline: ClassVar[str] = "peak_q_kPa"
     compare: ClassVar[tuple] = (("eps_a", "q_kPa"), ("eps_a", "cv_q"))
 

@@ -265,3 +265,27 @@ def test_a_run_with_an_elastic_stage_resumes_across_the_switch(tmp_path, monkeyp
     resumed = run(case, SAND, output=Output(tmp_path / "cut", plots=False), resume=True)
     np.testing.assert_array_equal(resumed.u, full.u)
     np.testing.assert_array_equal(resumed.stress, full.stress)
+
+
+def test_a_finished_footing_goes_on_to_a_larger_settlement(tmp_path):
+    """The one change a resume accepts: the end of the loading (here the target settlement). The load
+    factors already recorded are rescaled, so the history and the series go on monotonically, and the end
+    point is the run that aimed there from the start."""
+    from femgran.output import read_pvd
+
+    out = Output(tmp_path / "r", plots=False)
+    first = run(Footing(resolution=1, steps=6, settlement_m=0.01), SAND, output=out)
+    longer = run(Footing(resolution=1, steps=6, settlement_m=0.02), SAND, output=out, resume=True)
+    direct = run(Footing(resolution=1, steps=12, settlement_m=0.02), SAND)
+    h = read_table(tmp_path / "r" / "history.csv")
+    assert len(h) == len(longer.history) > len(first.history)
+    assert np.all(np.diff(h["settlement_m"]) > 0) and np.all(np.diff(h["load_factor"]) > 0)
+    np.testing.assert_allclose(h["load_factor"][len(first.history) - 1], 0.5, rtol=1e-12)
+    assert np.all(np.diff([t for t, _ in read_pvd(tmp_path / "r" / "footing.pvd")]) > 0)
+    assert longer.history["settlement_m"][-1] == pytest.approx(0.02)
+    # the extended run's later steps are twice the direct run's, and the step stabilisation's overstress is
+    # first order in the step: 0.5 % apart (51.85 against 51.58 kPa)
+    assert longer.history["pressure_kPa"][-1] == pytest.approx(direct.history["pressure_kPa"][-1], rel=1e-2)
+    assert json.loads((tmp_path / "r" / "parameters.json").read_text())["settlement_m"] == 0.02
+    with pytest.raises(ValueError, match=r"K0: 0.5 -> 0.6; .*\(only settlement_m may change on a resume"):
+        run(Footing(resolution=1, steps=6, settlement_m=0.03, K0=0.6), SAND, output=out, resume=True)
