@@ -130,7 +130,7 @@ def _run_case(args, cls) -> int:
         run_dir = out / f"{label}_{v:g}" if key else out
         sol = run(case, _material(args), solver=solver,
                   output=Output(run_dir, args.progress, checkpoint_every=args.checkpoint_every,
-                                keep_checkpoints=args.keep_checkpoints))
+                                keep_checkpoints=args.keep_checkpoints), resume=args.resume)
         sols.append((v, sol))
         scalars = {k: float(x) for k, x in sol.extra.items() if isinstance(x, (int, float, np.floating))}
         summary.append({**({key: v} if key else {}), **scalars, "completed": int(sol.completed)})
@@ -233,6 +233,9 @@ def register(subparsers) -> None:
         _material_flags(p)
         _solver_flags(p)
         _checkpoint_flags(p)
+        p.add_argument("--resume", action="store_true",
+                       help=f"continue the run in --out from its last checkpoint (the same flags; only --{cls.extend.replace('_', '-')} "
+                            "may differ: the loading then goes on to its new end)")
         add_out(p, f"out/{name}")
         add_progress(p)
         p.set_defaults(func=lambda args, cls=cls: _run_case(args, cls))

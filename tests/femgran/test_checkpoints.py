@@ -289,3 +289,15 @@ def test_a_finished_footing_goes_on_to_a_larger_settlement(tmp_path):
     assert json.loads((tmp_path / "r" / "parameters.json").read_text())["settlement_m"] == 0.02
     with pytest.raises(ValueError, match=r"K0: 0.5 -> 0.6; .*\(only settlement_m may change on a resume"):
         run(Footing(resolution=1, steps=6, settlement_m=0.03, K0=0.6), SAND, output=out, resume=True)
+
+
+def test_a_case_command_resumes_with_a_larger_settlement(tmp_path):
+    from femgran.cli import main
+
+    base = ["footing", "--resolution", "1", "--steps", "4", "--stabilisation", "0.1", "--no-progress", "--out",
+            str(tmp_path)]
+    assert main(base + ["--settlement", "0.01"]) == 0
+    assert main(base + ["--settlement", "0.015", "--resume"]) == 0
+    h = read_table(tmp_path / "history.csv")
+    assert h["settlement_m"][-1] == pytest.approx(0.015) and np.all(np.diff(h["settlement_m"]) > 0)
+    assert main(base + ["--settlement", "0.02", "--K0", "0.6", "--resume"]) == 2  # any other change: refused
