@@ -217,7 +217,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
             scale = 1.0  # the loading stage has not begun: it starts at 0 whatever its end
         else:
             _rescale_history(saved[1], scale, out_dir if continuing else None)
-    run_state = None if saved is None else ck.restore(newton, *saved, scale=scale if saved else 1.0)
+    run_state = None if saved is None else ck.restore(newton, *saved, scale=scale)
     writer = ckpt = None
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
@@ -261,9 +261,9 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                              fixed_steps=problem.fixed_steps, descriptions=columns, resume=run_state,
                              after_step=after_step, close_writer=False)
             if not sol.completed:
+                if problem.stages:
+                    sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
                 break
-            if problem.stages and k + 1 < len(stages):
-                sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
     if writer is not None:
         writer.close(newton, sol.completed, sol.stop_reason)
     if ckpt is not None:
