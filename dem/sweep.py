@@ -14,8 +14,7 @@ in the table.
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -45,16 +44,21 @@ def law_of(test_id: str) -> ContactLaw:
     return ContactLaw(kn=1e3 * kn, kt=1e3 * ks, friction=float(np.tan(np.radians(phi))))
 
 
-def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain: float = 0.05,
-             rotation_deg: float = 90.0, grid_spacing_m: float = 1e-5, progress: bool = False) -> dict:
-    """Run one Table 4 test into ``out/<test_id>``; returns a summary dict."""
+def table4_run(out, test: str = "T05", scale: float = 0.1, seed: int = 1, axial_strain: float = 0.05,
+               rotation_deg: float = 90.0, grid_spacing_m: float = 1e-5, progress: bool = False) -> dict:
+    """One Table 4 test into the folder ``out`` (a sweep target, :mod:`material.sweep`); returns its summary.
+
+    Writes ``isotropic.npz``, the ``biaxial/`` and ``rotation/`` runs and their fabric series
+    (``fabric_mil.csv``, ``fabric_areal_porosity.csv``)."""
     import dem
     from .calibrate import fabric_series
 
-    law = law_of(test_id)
-    n, aspect = TABLE4[test_id][:2]
+    law = law_of(test)
+    if not (isinstance(scale, (int, float)) and 0.0 < scale <= 1.0):
+        raise ValueError(f"scale = {scale!r}: allowed a fraction of the thesis's particle number in (0, 1]")
+    n, aspect = TABLE4[test][:2]
     n = max(50, int(round(n * scale)))
-    folder = Path(out) / test_id
+    folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     sample = dem.generate(n, seed=seed, law=law, aspect=aspect, progress=progress)
     iso = dem.isotropic_compression(sample, p_kPa=100.0, law=law)
@@ -67,9 +71,17 @@ def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain:
         for measure in ("mil", "areal_porosity"):
             series = fabric_series(run, measure=measure, grid_spacing_m=grid_spacing_m)
             write_csv(folder / stage / f"fabric_{measure}.csv", series)
-    return {"test": test_id, "n_particles": n, "porosity0": float(dem.porosity(iso)),
+    return {"n_particles": n, "porosity0": float(dem.porosity(iso)),
             "phi_peak_deg": float(np.nanmax(biax["phi_mob_deg"])), "max_inertial_number":
             float(max(np.nanmax(biax["inertial_number"]), np.nanmax(rot["inertial_number"])))}
+
+
+def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain: float = 0.05,
+             rotation_deg: float = 90.0, grid_spacing_m: float = 1e-5, progress: bool = False) -> dict:
+    """Run one Table 4 test into ``out/<test_id>`` (here, in this process); returns a summary dict."""
+    summary = table4_run(Path(out) / test_id, test_id, scale, seed, axial_strain, rotation_deg, grid_spacing_m,
+                         progress)
+    return {"test": test_id, **summary}
 
 
 def write_csv(path, columns: dict, descriptions: dict | None = None, title: str = "DEM table") -> Path:
@@ -82,30 +94,34 @@ def read_csv(path) -> Table:
     return read_table(path)
 
 
-def _run_one(args):
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    return run_test(*args)
+def sweep(out, tests=None, full: bool = False, scale: float = 0.1, seed: int = 1, workers: int | None = None,
+          axial_strain: float = 0.05, rotation_deg: float = 90.0, progress: bool = False,
+          scheduler: str | None = None) -> list[dict]:
+    """Run the Table 4 tests (default: all) on the sweep engine (:func:`material.sweep.sweep`: a local Dask
+    cluster of ``workers`` processes, or ``scheduler``; resumable) into ``out/<test>``, then write the
+    summary, the figures (``out/figures``) of the tests that completed and return their summary dicts (a test
+    that failed is reported on stderr and in ``out/sweep.json``)."""
+    from material.sweep import Run, sweep as run_sweep
 
-
-def sweep(out, tests=None, full: bool = False, scale: float = 0.1, seed: int = 1, jobs: int = 2,
-          axial_strain: float = 0.05, rotation_deg: float = 90.0, progress: bool = False) -> list[dict]:
-    """Run the Table 4 tests (default: all) and write per-run CSVs, the figures and a calibration."""
     tests = list(TABLE4) if not tests else list(tests)
     for t in tests:
         law_of(t)  # validates the ids
     scale = 1.0 if full else scale
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    args = [(t, out, scale, seed, axial_strain, rotation_deg, 1e-5, progress and jobs == 1) for t in tests]
-    if jobs > 1 and len(tests) > 1:
-        with mp.get_context("spawn").Pool(min(jobs, len(tests))) as pool:
-            summary = pool.map(_run_one, args)
-    else:
-        summary = [_run_one(a) for a in args]
-    write_csv(out / "summary.csv", {k: [s[k] for s in summary] for k in ("n_particles", "porosity0", "phi_peak_deg",
-                                                                         "max_inertial_number")})
-    (out / "summary_tests.txt").write_text("\n".join(s["test"] for s in summary) + "\n")
+    runs = [Run(t, "dem.sweep:table4_run", {"test": t, "scale": scale, "seed": seed, "axial_strain": axial_strain,
+                                             "rotation_deg": rotation_deg}, {"test_index": list(TABLE4).index(t)})
+            for t in tests]
+    result = run_sweep(runs, out, scheduler=scheduler, workers=workers, progress=progress, title="Table 4")
+    for r in result.records:
+        if r["status"] != "completed":
+            print(f"Table 4 sweep: {r['key']} {r['status']}: {r['message']} (the same command again runs the runs "
+                  "not complete)", file=sys.stderr)
+    summary = [{"test": r["key"], **r["summary"]} for r in result.records if r["status"] == "completed"]
+    done = [s["test"] for s in summary]
+    (out / "summary_tests.txt").write_text("\n".join(done) + "\n")
+    if not done:
+        return summary
     from .figures import sweep_figures
 
-    sweep_figures(out, tests)
+    sweep_figures(out, done)
     return summary

@@ -17,10 +17,10 @@ The element itself must not snap back either (crack band: h below a limit that g
 
 Prints, per run, the peak q, friction and dilatancy angles, the band angle (or that no band formed)
 with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.5, 6 %); writes
-``summary.csv`` and a plot of all curves. ``--jobs 2`` runs the six runs two at a time, each in its own
-process with one numba thread (its output in ``<out>/<run>.log``); runs can also be split by hand (``--resolutions 16
---variants unregularised``, with ``NUMBA_NUM_THREADS=1`` when processes share the cores). The summary
-and the plot collect every run folder found under ``--out``.
+``meshes.csv`` and a plot of all curves. The runs are a study on the sweep engine (:mod:`material.sweep`):
+``--jobs 2`` runs them two at a time on a local Dask cluster (one numba thread per worker),
+``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
+complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 8 12 16] [--variants ...]
 """
@@ -29,18 +29,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from femgran.cases import biaxial
 from femgran.solver import History
-from material import CPAModel, load_preset
-from material.factory import plane_strain_axes
+from material.sweep import Run, sweep
 from material.table import Table
 
 VARIANTS = ("regularised", "unregularised")
@@ -62,7 +56,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--stabilisation", type=float, default=0.1,
                     help="step stabilisation of the CPA law (0: the thesis's law, which stops past the peak)")
     ap.add_argument("--jobs", type=int, default=1,
-                    help="runs at a time, each in its own process with one numba thread")
+                    help="runs at a time (worker processes of a local Dask cluster, one numba thread each)")
+    ap.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler to run on")
     args = ap.parse_args(argv)
     if args.quick:
         # to the peak only, where the thesis's law needs no stabilisation (10 steps of 0.3 % would give
@@ -72,62 +67,47 @@ def main(argv=None) -> dict:
     if args.jobs < 1:
         ap.error(f"--jobs must be at least 1, got {args.jobs}")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    runs = [(n, variant) for variant in args.variants for n in args.resolutions]
-    sols = {}
-    if args.jobs == 1:
-        for n, variant in runs:
-            sols[(n, variant == "regularised")] = _run(n, variant, args, out)
-    else:
-        _run_in_processes(runs, args, out)
+    result = sweep(study(args), out, workers=args.jobs, scheduler=args.scheduler, progress=False,
+                   title="fe_04 meshes", on_record=_say)
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
-    return sols
+    return {(int(r["values"]["resolution"]), r["values"]["variant"] == "regularised"): r["summary"]
+            for r in result.records}
+
+
+def study(args) -> list[Run]:
+    """The runs: each mesh and variant a biaxial case (:func:`femgran.sweep.case_target`), finest mesh first."""
+    material = {"preset": "ottawa_c109", "stabilisation": args.stabilisation,
+                "set": {"E": args.youngs_modulus, "zeta": 1.05, "softening_slip": args.softening_slip,
+                        "residual_ratio": 0.65}}
+    fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
+              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": 0.01, "platens": args.platens}
+    runs = []
+    for n in sorted(args.resolutions, reverse=True):
+        for variant in args.variants:
+            runs.append(Run(_tag(n, variant), "femgran.sweep:case_target",
+                            {"case": "biaxial", "fields": {**fields, "resolution": n},
+                             "material": {**material, "regularise": variant == "regularised"}},
+                            {"resolution": n, "variant": variant}))
+    return runs
 
 
 def _tag(n: int, variant: str) -> str:
     return f"resolution_{n}" + ("" if variant == "regularised" else "_unregularised")
 
 
-def _run(n: int, variant: str, args, out: Path):
-    """One run in this process: prints its one-line summary, returns the solution."""
-    params = load_preset("ottawa_c109").replace(E=args.youngs_modulus, zeta=1.05,
-                                                softening_slip=args.softening_slip, residual_ratio=0.65)
-    model = CPAModel(params, axes=plane_strain_axes(0.0), regularise=variant == "regularised",
-                     stabilisation=args.stabilisation)
-    tag = _tag(n, variant)
-    sol = biaxial(model, 100.0, 0.0, axial_strain=args.axial_strain, steps=args.steps, resolution=n,
-                  imperfection=0.0, weak_zone=0.1, weak_zone_height=0.01, platens=args.platens, out=out / tag)
-    ref = sol.reference_angles_deg
-    band = f"band at {sol.band_angle_deg:.1f} deg" if sol.localised else "no localised band"
-    post = ", ".join(f"q({e:g}) {q:.1f}" for e, q in zip(POST_PEAK_STRAINS, _post_peak_q(sol.history)))
-    print(f"{tag}: peak q {sol.peak_q_kPa:.1f} kPa; {post} kPa; peak phi {sol.peak_friction_deg:.1f}, "
-          f"psi {sol.peak_dilatancy_deg:.1f} deg; {band}; Coulomb {ref['coulomb']:.1f}, Roscoe "
-          f"{ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} [{sol.stop_reason}]", flush=True)
-    return sol
-
-
-def _run_in_processes(runs, args, out: Path) -> None:
-    """Each run in a child process of this script (one numba thread: parallel kernels in processes that
-    share the cores wait for descheduled threads), at most ``args.jobs`` at a time, finest mesh first."""
-
-    base = []  # every study option as parsed (after --quick), except those that choose the runs
-    for key, value in vars(args).items():
-        if key not in ("quick", "jobs", "resolutions", "variants"):
-            base += ["--" + key.replace("_", "-"), str(value)]
-    env = dict(os.environ, NUMBA_NUM_THREADS="1")
-
-    def child(run):
-        n, variant = run
-        log = out / f"{_tag(n, variant)}.log"
-        cmd = [sys.executable, str(Path(__file__).resolve()), *base, "--resolutions", str(n), "--variants", variant]
-        with open(log, "w") as f:
-            code = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=env).returncode
-        lines = [ln for ln in log.read_text().splitlines() if ln.startswith(_tag(n, variant) + ":")]
-        print(lines[-1] if lines else f"{_tag(n, variant)}: exit code {code}, no result (see {log})", flush=True)
-
-    with ThreadPoolExecutor(args.jobs) as pool:
-        list(pool.map(child, sorted(runs, key=lambda r: -r[0])))
+def _say(rec) -> None:
+    """One line per run as it finishes."""
+    s = rec["summary"]
+    if rec["status"] == "failed":
+        print(f"{rec['key']}: failed: {rec['message']}", flush=True)
+        return
+    ref = {k: s.get(f"reference_angles_deg_{k}", float("nan")) for k in ("coulomb", "roscoe", "arthur")}
+    band = f"band at {s['band_angle_deg']:.1f} deg" if s.get("localised") else "no localised band"
+    print(f"{rec['key']}: peak q {s.get('peak_q_kPa', float('nan')):.1f} kPa; peak phi "
+          f"{s.get('peak_friction_deg', float('nan')):.1f}, psi {s.get('peak_dilatancy_deg', float('nan')):.1f} deg; "
+          f"{band}; Coulomb {ref['coulomb']:.1f}, Roscoe {ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} "
+          f"[{s.get('stop_reason', rec['message'])}]", flush=True)
 
 
 def _post_peak_q(history) -> list[float]:
@@ -137,7 +117,7 @@ def _post_peak_q(history) -> list[float]:
 
 
 def collect(out: Path) -> list[dict]:
-    """One row per run folder under ``out`` (this process's runs and any other's); writes summary.csv and
+    """One row per run folder under ``out`` (this process's runs and any other's); writes meshes.csv and
     prints the spread of the post-peak q over the meshes of each variant."""
 
     rows = []
@@ -166,7 +146,7 @@ def collect(out: Path) -> list[dict]:
                    coulomb_deg=ref["coulomb"], roscoe_deg=ref["roscoe"], arthur_deg=ref["arthur"],
                    completed=int(r["completed"]))
         table.append(row)
-    table.write_csv(out / "summary.csv")
+    table.write_csv(out / "meshes.csv")
     for reg in (True, False):
         sel = [r for r in rows if r["regularised"] == reg]
         parts = []

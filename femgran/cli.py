@@ -15,7 +15,7 @@ import argparse
 import importlib
 import sys
 
-_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures")
+_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures", "femgran.sweep")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,9 +9,12 @@ Examples::
     femgran element path lab.csv --substeps 5      # replay lab data (see material.driver.LoadPath.from_csv)
     femgran element path path.toml                 # a path declared as data (LoadPath.from_toml)
 
-Every run writes into ``--out`` (default ``out/element``): one CSV per run (``<test>_<tag>.csv``, tag e.g. ``p0_100_alpha_90``, with
-a commented header), one PNG overlaying the runs, the parameter file used (``parameters.toml``) and
-``run.json`` (command, options, package version, seed = none: the tests are deterministic).
+Every run of the sweep (:mod:`material.sweep`: one after the other here, or ``--workers N`` / ``--scheduler
+ADDRESS`` on Dask; the same command again skips the runs already complete) writes into its own folder
+under ``--out`` (default ``out/element``): ``<test>_<tag>/<test>.csv`` (tag e.g. ``p0_100_alpha_90``, a
+commented header). Next to them: one PNG overlaying the runs, ``summary.csv`` (peak stress, final volume
+change per run), the parameter file used (``parameters.toml``) and ``run.json`` (command, options,
+package version, seed = none: the tests are deterministic).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-from material.commandline import add_out, add_parameters, add_progress, parameters_from_args, write_run_record
+from material.commandline import add_out, add_parameters, add_progress, parameters_from_args, parse_set, write_run_record
 
 __all__ = ["register"]
 
@@ -76,6 +79,11 @@ def register(subparsers) -> None:
     add_out(g, "out/element")
     add_progress(g)
     g.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    g.add_argument("--workers", type=int, default=1,
+                   help="worker processes of a local Dask cluster for the runs (default 1: here, one by one; "
+                        "element tests are quick)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (tcp://host:8786) to run the tests on")
 
     for name, sweeps in _SWEEPS.items():
         p = tests.add_parser(name, parents=[common], help=_HELP[name], description=_HELP[name])
@@ -136,61 +144,77 @@ def _specific_kwargs(args) -> dict:
     return kw
 
 
+def _material_spec(args) -> dict:
+    """The ``[material]`` mapping of the flags (what :func:`material.sweep.element` and the factory take)."""
+    spec = {"parameters": str(Path(args.params).resolve())} if args.params else \
+        {"preset": args.preset or ("ottawa_c109_induced" if args.test == "rotation" else "ottawa_c109")}
+    changes = parse_set(args.set)
+    return {**spec, **({"set": changes} if changes else {}), "rule": args.rule}
+
+
+def _runs(args) -> list:
+    """One :class:`material.sweep.Run` per combination of the swept values (folder ``<test>_<tag>``)."""
+    from material.sweep import Run
+
+    stem = args.test.replace("-", "_")
+    spec = _material_spec(args)
+    if args.test == "path":
+        tag = Path(args.csv).stem
+        kw = {"path_file": str(Path(args.csv).resolve()), "substeps": args.substeps}
+        return [Run(f"path_{tag}", "material.sweep:element", {"test": "path", "material": spec, **kw}, {})]
+    from material.base import check_positive
+
+    sweeps = _SWEEPS[args.test]
+    for dest, key, _ in sweeps:  # bad values are named before anything runs
+        if key in ("p0_kPa", "sigma_n_kPa"):
+            for v in getattr(args, dest):
+                check_positive(key, v)
+    runs = []
+    for combo in itertools.product(*(getattr(args, dest) for dest, _, _ in sweeps)):
+        kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
+        tag = "_".join(f"{dest}_{v:g}" for (dest, _, _), v in zip(sweeps, combo))
+        runs.append(Run(f"{stem}_{tag}", "material.sweep:element",
+                        {"test": args.test, "material": spec, **kw, **_specific_kwargs(args)}, kw))
+    return runs
+
+
 def _run(args) -> int:
-    from material import driver
     from material.parameters import save_parameters
+    from material.results import read_csv as read_result
+    from material.sweep import sweep
     from material.version import __version__
 
-    params = _parameters(args)
+    params = _parameters(args)  # checks the preset, file and --set before anything runs
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     stem = args.test.replace("-", "_")
     t0 = time.perf_counter()
-    runs = []
-    if args.test == "path":
-        from material.cpa import CPAModel
-
-        if str(args.csv).lower().endswith(".toml"):
-            path = driver.LoadPath.from_toml(args.csv)
-        else:
-            path = driver.LoadPath.from_csv(args.csv, substeps=args.substeps)
-        tag = Path(args.csv).stem
-        log = out / f"path_{tag}.steps.csv"
-        res = driver.run_path(CPAModel(params, rule=args.rule), path, progress=args.progress, log=log)
-        res.metadata.update(test="path", path_file=str(args.csv))
-        res.to_csv(out / f"path_{tag}.csv")
-        log.unlink(missing_ok=True)
-        runs.append((tag, {}, res))
-    else:
-        sweeps = _SWEEPS[args.test]
-        fn = getattr(driver, stem)
-        values = [getattr(args, dest) for dest, _, _ in sweeps]
-        for combo in itertools.product(*values):
-            kw = {key: v for (_, key, _), v in zip(sweeps, combo)}
-            tag = "_".join(f"{dest}_{v:g}" for (dest, _, _), v in zip(sweeps, combo))
-            log = out / f"{stem}_{tag}.steps.csv"  # written step by step; removed once the table is saved
-            res = fn(params, rule=args.rule, progress=args.progress, log=log, **kw, **_specific_kwargs(args))
-            runs.append((tag, kw, res))
-            res.to_csv(out / f"{stem}_{tag}.csv")
-            log.unlink(missing_ok=True)
-    files = []
-    for tag, kw, res in runs:
-        files.append(f"{stem}_{tag}.csv")
-        if not res.completed:
-            print(f"femgran element {args.test}: {tag}: stopped early: {res.message}", file=sys.stderr)
-    if not args.no_plot:
+    result = sweep(_runs(args), out, scheduler=args.scheduler, workers=args.workers,
+                   progress=args.progress and args.workers != 1, title=f"element {args.test}")
+    runs, files = [], []
+    for rec in result.records:
+        csv = out / rec["key"] / f"{stem}.csv"
+        if rec["status"] == "failed" or not csv.is_file():
+            print(f"femgran element {args.test}: {rec['key']}: failed: {rec['message']}", file=sys.stderr)
+            continue
+        res = read_result(csv)
+        runs.append((rec["key"].removeprefix(stem + "_"), rec, res))
+        files.append(str(csv.relative_to(out)))
+        if rec["status"] != "completed":
+            print(f"femgran element {args.test}: {rec['key']}: stopped early: {rec['message']}", file=sys.stderr)
+    if not args.no_plot and runs:
         files.append(_plot(runs, out / f"{stem}.png", f"{args.test} ({params.name})").name)
     save_parameters(params, out / "parameters.toml", femgran_version=__version__)
-    files.append("parameters.toml")
+    files += ["parameters.toml", "summary.csv"]
     write_run_record(out, args, test=args.test, seed=None, deterministic=True,
                      wall_time_s=round(time.perf_counter() - t0, 3),
-                     runs=[{"tag": tag, "completed": res.completed, "message": res.message, "rows": len(res)}
-                           for tag, _, res in runs],
-                     files=files)
-    print(f"femgran element {args.test}: {len(runs)} run(s) -> {out}/ ({', '.join(files)})")
+                     runs=[{"tag": r["key"], "status": r["status"], "message": r["message"]} for r in result.records],
+                     ran=result.ran, skipped=result.skipped, files=files)
+    print(f"femgran element {args.test}: {len(result.records)} run(s) -> {out}/ ({result.ran} run now, "
+          f"{result.skipped} already complete; {', '.join(files)})")
     for tag, _, res in runs:
         print("  " + _summary(tag, res))
-    return 0 if all(res.completed for _, _, res in runs) else 1
+    return 0 if result.completed else 1
 
 
 def _summary(tag: str, res) -> str:

@@ -618,6 +618,7 @@ def _finish(res: ElementResult, test: str, params, extra_meta: dict, plot_pairs)
     if params is not None and hasattr(params, "to_dict"):
         res.metadata["parameters"] = params.to_dict()
     res.plot_pairs = list(plot_pairs)
+    res.metadata["plot_pairs"] = [list(p) for p in res.plot_pairs]  # read back by material.results.read_csv
     return res
 
 

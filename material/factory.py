@@ -15,7 +15,8 @@ The one rule for the deposition angle: a CPA law built here gets the material ax
 (default 0); a material object keeps its own axes, and an ``alpha_deg`` given with it must agree with
 them (the deposition axis e2, up to its sign), so the angle recorded next to a result is the angle the
 law used. An object without axes (an isotropic law) accepts any ``alpha_deg``. The CPA options
-``rule`` and ``stabilisation`` apply only to a law built here.
+``rule``, ``stabilisation`` and ``regularise`` (the crack-band scaling of the softening by the element
+size, :class:`material.cpa.CPAModel`) apply only to a law built here.
 
 Frames: ``plane_strain=False`` has the vertical along z (e2 = (sin a, 0, cos a),
 :func:`material.anisotropy.axes_from_alpha`), ``plane_strain=True`` along y with z out of plane
@@ -33,7 +34,7 @@ __all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS"]
 
 #: Keys of each law in a mapping spec (the ``[material]`` table of a case file).
 LAWS = {
-    "cpa": ("preset", "parameters", "rule", "set", "stabilisation"),
+    "cpa": ("preset", "parameters", "rule", "set", "stabilisation", "regularise"),
     "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "linear_elastic": ("E_kPa", "nu"),
@@ -97,7 +98,8 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
         params = mlib.load_parameters(base / spec["parameters"]) if "parameters" in spec else \
             mlib.load_preset(spec.get("preset", DEFAULT_PRESET))
         return make_material(with_changes(params, spec.get("set") or {}), alpha_deg=alpha_deg,
-                             plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"))
+                             plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"),
+                             regularise=spec.get("regularise"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
     try:
         return cls(**spec)
@@ -106,7 +108,8 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
 
 
 def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bool = False,
-                  rule: str | None = None, stabilisation: float | None = None, base: Path = Path(".")):
+                  rule: str | None = None, stabilisation: float | None = None, regularise: bool | None = None,
+                  base: Path = Path(".")):
     """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``).
     ``base``: the folder a parameter file named in a mapping spec is relative to."""
     if isinstance(spec, Mapping):
@@ -115,7 +118,8 @@ def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bo
     if params is not None:
         from material.cpa import CPAModel  # the CPA kernel is the heavy import
 
-        options = {k: v for k, v in (("rule", rule), ("stabilisation", stabilisation)) if v is not None}
+        options = {k: v for k, v in (("rule", rule), ("stabilisation", stabilisation), ("regularise", regularise))
+                   if v is not None}
         axes = deposition_axes(0.0 if alpha_deg is None else alpha_deg, plane_strain=plane_strain)
         return CPAModel(params, axes=axes, **options)
     missing = [m for m in ("initial_state", "update") if not callable(getattr(spec, m, None))]
@@ -123,7 +127,7 @@ def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bo
         raise ValueError(f"material = {spec!r} ({type(spec).__name__}) lacks the method(s) {missing} of a material "
                          "object; allowed: None, a preset name, a parameter file (.toml/.json), CPAParameters or an "
                          "object with initial_state and update")
-    for name, value in (("rule", rule), ("stabilisation", stabilisation)):
+    for name, value in (("rule", rule), ("stabilisation", stabilisation), ("regularise", regularise)):
         if value is not None:
             raise ValueError(f"{name} = {value!r}: applies to a CPA law built from a preset or parameters; the "
                              f"given {type(spec).__name__} has its own")

@@ -173,4 +173,5 @@ def read_csv(path) -> ElementResult:
             stress[:, i, j] = stress[:, j, i] = cols[f"sig_{comp}_kPa"]
         if f"eps_{comp}" in cols:
             strain[:, i, j] = strain[:, j, i] = cols[f"eps_{comp}"]
-    return ElementResult(cols, t.descriptions, stress, strain, t.metadata, completed, message)
+    pairs = [tuple(p) for p in t.metadata.get("plot_pairs", ())]
+    return ElementResult(cols, t.descriptions, stress, strain, t.metadata, completed, message, plot_pairs=pairs)

@@ -13,8 +13,11 @@ Examples::
     femgran cavity --law von_mises --E 1e5 --yield-stress 173.2 # Hill's cylinder
     femgran run case.toml --max-iter 40                         # a case file (femgran.cases.casefile)
 
-A sweep (several values of one field, e.g. ``--alpha 0 45 90``) writes one run folder per value under
-``--out`` (``alpha_0``, ...), ``summary.csv`` with every run's summary, and comparison plots.
+A sweep (several values of one field, e.g. ``--alpha 0 45 90``) is a study on the sweep engine
+(:mod:`material.sweep`: a local Dask cluster, ``--workers``, or ``--scheduler ADDRESS``): one run folder
+per value under ``--out`` (``alpha_0``, ...), ``summary.csv`` with every run's summary as they finish,
+and comparison plots; the same command again completes only the runs not yet complete (a run
+interrupted mid-way continues from its checkpoint). ``femgran sweep`` sweeps several fields at once.
 """
 
 from __future__ import annotations
@@ -114,41 +117,61 @@ def _sweep_field(args, cls):
 
 
 def _run_case(args, cls) -> int:
+    """One run here, in this process; several values of one field: a study on the sweep engine."""
     from femgran.cases.base import Output, run
     from femgran.cases.common import solver_options
-    from material.table import Table
 
     out = Path(args.out)
     key, values = _sweep_field(args, cls)
     fixed = {f.name: (v[0] if isinstance(v := getattr(args, f.name), list) else v) for f in dataclasses.fields(cls)}
-    label = _flags(next(f for f in dataclasses.fields(cls) if f.name == key))[0].lstrip("-").replace("-", "_") \
-        if key else None
     solver = solver_options(_solver_given(args))
-    summary, sols = Table(title=f"{cls.name} sweep over {key}", metadata={"command": cls.name}), []
-    for v in values:
-        case = cls(**{**fixed, **({key: v} if key else {})})
-        run_dir = out / f"{label}_{v:g}" if key else out
+    if key is None:
+        case = cls(**fixed)
         sol = run(case, _material(args), solver=solver,
-                  output=Output(run_dir, args.progress, checkpoint_every=args.checkpoint_every,
+                  output=Output(out, args.progress, checkpoint_every=args.checkpoint_every,
                                 keep_checkpoints=args.keep_checkpoints), resume=args.resume)
-        sols.append((v, sol))
-        scalars = {k: float(x) for k, x in sol.extra.items() if isinstance(x, (int, float, np.floating))}
-        summary.append({**({key: v} if key else {}), **scalars, "completed": int(sol.completed)})
-        value = f"{label} = {v:g}: " if key else ""
-        print(f"{value}{cls.headline} = {sol.extra[cls.headline]:.4g}; {sol.stop_reason}; results in {run_dir}")
-    write_run_record(out, args, runs=[{"value": v, cls.headline: s.extra[cls.headline], "completed": s.completed}
-                                      for v, s in sols])
-    if key:
-        summary.write_csv(out / "summary.csv")
+        print(f"{cls.headline} = {sol.extra[cls.headline]:.4g}; {sol.stop_reason}; results in {out}")
+        write_run_record(out, args, runs=[{cls.headline: sol.extra[cls.headline], "completed": sol.completed}])
+        return 0 if sol.completed else 1
+    return _run_study(args, cls, out, key, values, fixed, solver)
+
+
+def _run_study(args, cls, out: Path, key: str, values, fixed: dict, solver) -> int:
+    """The runs of a sweep over ``key`` on :func:`material.sweep.sweep` (one folder each, resumable), then
+    the comparison plots of the runs that have a history."""
+    from femgran.solver import History
+    from material.sweep import Run, sweep
+
+    label = _flags(next(f for f in dataclasses.fields(cls) if f.name == key))[0].lstrip("-").replace("-", "_")
+    for v in values:
+        cls(**{**fixed, key: v})  # every run's fields checked before any runs
+    runs = [Run(f"{label}_{v:g}", "femgran.sweep:case_target",
+                {"case": cls.name, "fields": {**fixed, key: v}, "material": _material(args),
+                 "solver": solver.to_dict(), "checkpoint_every": args.checkpoint_every}, {key: v}) for v in values]
+    if args.resume:
+        print(f"{cls.name} sweep: every run not yet complete continues from its checkpoint (--resume is implied)")
+    result = sweep(runs, out, scheduler=args.scheduler, workers=args.workers, progress=args.progress,
+                   title=f"{cls.name} sweep over {key}")
+    sols = []
+    for v, rec in zip(values, result.records):
+        head = rec["summary"].get(cls.headline, float("nan"))
+        what = rec["summary"].get("stop_reason") or rec["message"] or rec["status"]
+        print(f"{label} = {v:g}: {cls.headline} = {head:.4g}; {what}; results in {out / rec['key']}")
+        if (out / rec["key"] / "history.csv").is_file():
+            sols.append((v, History.read_csv(out / rec["key"] / "history.csv")))
+    write_run_record(out, args, runs=[{"value": v, "key": r["key"], "status": r["status"],
+                                       cls.headline: r["summary"].get(cls.headline)}
+                                      for v, r in zip(values, result.records)], ran=result.ran, skipped=result.skipped)
+    if sols:
         for x, y in cls.compare:
-            _overlay(sols, x, y, out / f"{y}_vs_{x}.png", label, sols[0][1].history.descriptions)
-    return 0 if all(s.completed for _, s in sols) else 1
+            _overlay(sols, x, y, out / f"{y}_vs_{x}.png", label, sols[0][1].descriptions)
+    return 0 if result.completed else 1
 
 
 def _overlay(sols, x, y, path, label, descriptions):
     from femgran.output import plot_curves
 
-    plot_curves([(f"{label} = {v:g}", s.history[x], s.history[y], "-") for v, s in sols], path,
+    plot_curves([(f"{label} = {v:g}", h[x], h[y], "-") for v, h in sols], path,
                 xlabel=f"{x}: {descriptions.get(x, '')}", ylabel=f"{y}: {descriptions.get(y, '')}")
 
 
@@ -157,6 +180,14 @@ def _checkpoint_flags(p):
     g.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
                    help="a checkpoint every N converged steps (default 0: at the end, on a stop or Ctrl-C only)")
     g.add_argument("--keep-checkpoints", type=int, default=2, metavar="K", help="keep the last K (default 2)")
+
+
+def _study_flags(p):
+    g = p.add_argument_group("sweeps (several values of one field: material.sweep on Dask, resumable)")
+    g.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local Dask cluster (default: the machine's cores)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of an existing Dask scheduler (tcp://host:8786); 'serial' runs here, one by one")
 
 
 def _run(args):
@@ -236,6 +267,7 @@ def register(subparsers) -> None:
         p.add_argument("--resume", action="store_true",
                        help=f"continue the run in --out from its last checkpoint (the same flags; only --{cls.extend.replace('_', '-')} "
                             "may differ: the loading then goes on to its new end)")
+        _study_flags(p)
         add_out(p, f"out/{name}")
         add_progress(p)
         p.set_defaults(func=lambda args, cls=cls: _run_case(args, cls))

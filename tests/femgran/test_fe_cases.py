@@ -306,10 +306,11 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
     from material.table import read_table
 
     summary = read_table(out / "summary.csv")
-    assert summary.columns[:2] == ["alpha_deg", "peak_q_kPa"] and summary.columns[-1] == "completed"
+    assert summary.columns[:3] == ["run", "alpha_deg", "peak_q_kPa"] and "completed" in summary.columns
     assert list(summary["alpha_deg"]) == [0.0, 90.0] and list(summary["completed"]) == [1.0, 1.0]
     assert "final_q_over_element" in summary.columns  # every scalar of each run's summary
     assert (out / "alpha_90" / "triaxial.pvd").is_file() and (out / "q_kPa_vs_eps_a.png").is_file()
+    assert summary.metadata["runs"] == ["alpha_0", "alpha_90"]  # folders, in the order of the values
     assert main(["footing", "--law", "von_mises", "--unit-weight", "0", "--resolution", "1", "--steps", "2",
                  "--settlement", "0.002", "--smooth", "--out", str(tmp_path / "ft"), "--no-progress"]) == 0
     assert json.loads((tmp_path / "ft" / "parameters.json").read_text())["rough"] is False

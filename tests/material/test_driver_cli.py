@@ -15,16 +15,19 @@ def test_element_triaxial_writes_run_folder(tmp_path):
     rc = main(["element", "triaxial", "--steps", "30", "--out", str(out), "--no-progress"])
     assert rc == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["parameters.toml", "run.json", "triaxial.png", "triaxial_p0_100_alpha_0.csv",
-                     "triaxial_p0_100_alpha_90.csv"]
+    assert names == ["parameters.toml", "run.json", "summary.csv", "sweep.json", "triaxial.png",
+                     "triaxial_p0_100_alpha_0", "triaxial_p0_100_alpha_90"]
     run = json.loads((out / "run.json").read_text())
     assert run["test"] == "triaxial" and run["seed"] is None and run["femgran_version"]
-    assert all(r["completed"] for r in run["runs"])
+    assert all(r["status"] == "completed" for r in run["runs"]) and run["ran"] == 2
     assert load_parameters(out / "parameters.toml") == load_preset("ottawa_c109")
-    res = read_csv(out / "triaxial_p0_100_alpha_0.csv")
-    assert len(res) == 31
+    res = read_csv(out / "triaxial_p0_100_alpha_0" / "triaxial.csv")
+    assert len(res) == 31 and res.plot_pairs == [("eps_a", "q_kPa"), ("eps_a", "eps_v")]
     assert res.metadata["parameters"]["eta0"] == pytest.approx(0.8896)
-    assert res["q_kPa"][-1] > read_csv(out / "triaxial_p0_100_alpha_90.csv")["q_kPa"][-1]
+    assert res["q_kPa"][-1] > read_csv(out / "triaxial_p0_100_alpha_90" / "triaxial.csv")["q_kPa"][-1]
+    # the same command again finds both runs complete and runs nothing
+    assert main(["element", "triaxial", "--steps", "30", "--out", str(out), "--no-progress"]) == 0
+    assert json.loads((out / "run.json").read_text())["skipped"] == 2
 
 
 def test_element_rotation_with_override(tmp_path):
@@ -32,7 +35,7 @@ def test_element_rotation_with_override(tmp_path):
                "--no-progress", "--no-plot"])
     assert rc == 0
     assert load_parameters(tmp_path / "parameters.toml").beta == 5.0
-    res = read_csv(tmp_path / "rotation_p0_14_dpsi_90.csv")
+    res = read_csv(tmp_path / "rotation_p0_14_dpsi_90" / "rotation.csv")
     assert res.metadata["delta_psi_deg"] == 90.0
     assert np.abs(res["eps_zz"]).max() < 1e-12
 
@@ -44,7 +47,7 @@ def test_element_path_replays_csv(tmp_path):
     f.write_text("\n".join(rows) + "\n")
     rc = main(["element", "path", str(f), "--substeps", "3", "--out", str(tmp_path / "o"), "--no-progress"])
     assert rc == 0
-    res = read_csv(tmp_path / "o" / "path_lab.csv")
+    res = read_csv(tmp_path / "o" / "path_lab" / "path.csv")
     assert len(res) == 16
     assert np.abs(res["sig_xx_kPa"] + 50.0).max() < 1e-8 * np.abs(res.stress).max()
 
