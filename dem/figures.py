@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .sweep import read_csv
+from .sweep import read_csv, write_csv
 
 
 def _plt():
@@ -45,10 +45,40 @@ def _unwrap(a):
     return out
 
 
-def sweep_figures(out, tests) -> list[Path]:
+#: One sentence per figure (by its number): what it shows (the index of ``femgran figures``).
+DESCRIPTIONS = {
+    "fig23": "Deviatoric stress ratio q/p against the deviatoric strain in the DEM biaxial test.",
+    "fig24": "Volumetric strain against the deviatoric strain in the DEM biaxial test.",
+    "fig25": "Deviatoric strain components while the principal strain axes rotate at constant strain magnitude.",
+    "fig26": "Their increments: a rotation of the axes at constant magnitude (eq. 3.10).",
+    "fig27": "Stress components during the rotation of the strain axes.",
+    "fig28": "Direction of the principal stress against the direction of the principal strain increment "
+             "during the rotation (the dashed line: coaxial).",
+    "fig29": "Stress ratio of samples of different size (N1-N3).",
+    "fig30": "Volumetric strain of samples of different size (N1-N3).",
+    "fig31": "Stress ratio for three contact friction angles (T01-T03).",
+    "fig32": "Volumetric strain for three contact friction angles (T01-T03).",
+    "fig33": "Stress ratio for different contact stiffnesses (T04-T07).",
+    "fig34": "Volumetric strain for different contact stiffnesses (T04-T07).",
+    "fig38": "Directional fabric (areal porosity and mean intercept length) at the end of the biaxial stage, with "
+             "Kanatani fits of order 1-3.",
+    "fig39": "Angle delta between the fabric tensor and the strain deviator during the biaxial stage.",
+    "fig40": "Angle delta between the fabric tensor and the strain deviator during the rotation of the strain axes.",
+    "fig41": "Delta during the rotation for pairs of contact parameters.",
+    "fig42": "Glyphs of the fabric tensor over the strain deviator at six stages of the rotation.",
+    "fig43": "Delta measured with the mean intercept length and with the areal porosity.",
+    "fig44": "Directions of the strain, strain increment, stress and fabric during the rotation.",
+}
+
+
+def sweep_figures(out, tests, figdir=None) -> list[Path]:
+    """The chapter-3 figures of the Table 4 runs ``out/<test>`` into ``figdir`` (default ``out/figures``):
+    each PNG with the CSV of what it draws (:func:`material.plotting.save_figure`)."""
+    from material.plotting import save_figure
+
     plt = _plt()
     out = Path(out)
-    figdir = out / "figures"
+    figdir = out / "figures" if figdir is None else Path(figdir)
     figdir.mkdir(parents=True, exist_ok=True)
     data = {t: _load(out, t) for t in tests}
     main = "T06" if "T06" in data else tests[0]
@@ -56,10 +86,7 @@ def sweep_figures(out, tests) -> list[Path]:
 
     def save(fig, name):
         fig.tight_layout()
-        path = figdir / name
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.extend(save_figure(fig, figdir / name))
 
     b, r = data[main]["biaxial"], data[main]["rotation"]
     fig, ax = plt.subplots(figsize=(5, 4))
@@ -178,6 +205,11 @@ def sweep_figures(out, tests) -> list[Path]:
     save(fig, "fig44_angles.png")
     try:
         written.append(glyph_figure(f, figdir / "fig42_glyphs.png"))
+        keep = ("alpha_eps_deg", "delta_deg", "omega_xx", "omega_xy")
+        written.append(Path(write_csv(figdir / "fig42_glyphs.csv", {k: f[k] for k in keep},
+                                      {"omega_xx": "fabric tensor Omega, xx component (Omega_yy = -Omega_xx)",
+                                       "omega_xy": "fabric tensor Omega, xy component"},
+                                      title="Fig. 42: the fabric tensor drawn as glyphs (MIL) during the rotation")))
     except Exception as exc:  # pyvista needs an off-screen renderer; the rest of the set is still useful
         (figdir / "fig42_glyphs.txt").write_text(f"glyph figure not rendered: {exc}\n")
     return written

@@ -6,7 +6,9 @@ only assembles them:
 * :mod:`material.cli` -- ``femgran element ...`` (single-point element tests);
 * :mod:`femgran.cases.cli` -- ``femgran triaxial|footing|biaxial|run ...`` (boundary-value problems);
 * :mod:`dem.cli` -- ``femgran dem ...`` and ``femgran calibrate ...`` (virtual experiments);
-* :mod:`femgran.figures` -- ``femgran figures`` (the thesis's model figures).
+* :mod:`femgran.figures` -- ``femgran figures`` (every figure, from the package's own simulations);
+* :mod:`femgran.sweep` -- ``femgran sweep`` (any run over a grid or a list, on Dask);
+* :mod:`material.identify_cli` -- ``femgran identify direct-shear|triaxial`` (parameters from lab data).
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from material.failure import strength_envelope
 from material.parameters import load_preset
 from material.table import Table
 
-__all__ = ["FIGURES", "make_figures", "direct_shear_envelopes"]
+__all__ = ["FIGURES", "DESCRIPTIONS", "make_figures", "figure_run", "direct_shear_envelopes"]
 
 
 def direct_shear_envelopes() -> dict[str, np.ndarray]:
@@ -227,6 +227,32 @@ FIGURES: dict[str, Callable[[Path, bool], list[Path]]] = {
     "fig46-47": _fig46_47,
     "envelope": _envelope,
 }
+
+
+#: One sentence per figure file (stem): what it shows (the index of ``femgran figures``).
+DESCRIPTIONS = {
+    "fig14_friction_distribution": "Friction coefficient eta_f against the deposition angle: the series of eq. 2.20 "
+                                   "(order 1 and order 4, Table 3) against the slopes of the direct-shear envelopes.",
+    "fig20_triaxial_p50": "Drained triaxial compression at p0 = 50 kPa, bedding horizontal (alpha 0) and vertical "
+                          "(alpha 90): deviator and volumetric strain against axial strain.",
+    "fig21_triaxial_p100": "The same at p0 = 100 kPa.",
+    "fig45_rotation_beta": "Reshear after a rotation of the principal stress by 0 and 90 deg for three rates beta of "
+                           "induced anisotropy: deviator and volumetric strain against the reshear strain.",
+    "fig46_rotation_psi": "Reshear after rotations of the principal stress of 0, 45 and 90 deg (beta = 0.1).",
+    "fig47_rotation_strains": "Strain components through pre-shear, unloading and reshear for the three rotations.",
+    "strength_envelope": "Drained triaxial strength q_f against the deposition angle from the critical-plane "
+                         "criterion, with the peaks of the element tests at alpha 0 and 90.",
+}
+
+
+def figure_run(out, name: str, full: bool = False) -> dict:
+    """Sweep target (:mod:`material.sweep`): the figure ``name`` of :data:`FIGURES` into the folder ``out``."""
+    if name not in FIGURES:
+        raise ValueError(f"figure = {name!r}: allowed {list(FIGURES)}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = FIGURES[name](out, bool(full))
+    return {"files": len(written)}
 
 
 def make_figures(out_dir, names=None, full: bool = False, progress: bool = True) -> list[Path]:

@@ -34,9 +34,6 @@ def test_figures_cli_writes_png_and_csv(tmp_path):
     assert gaps[0] < gaps[1] < gaps[2]
 
 
-def test_unknown_figure_is_rejected(capsys):
-    import pytest
-
-    with pytest.raises(SystemExit):
-        main(["figures", "--only", "fig99"])
-    assert "invalid choice" in capsys.readouterr().err
+def test_unknown_figure_is_rejected(capsys, tmp_path):
+    assert main(["figures", "--only", "fig99", "--out", str(tmp_path)]) == 2
+    assert "figures --only ['fig99']: allowed the groups" in capsys.readouterr().err
