@@ -17,7 +17,7 @@ import argparse
 import importlib
 import sys
 
-_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures", "femgran.sweep")
+_REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures", "femgran.sweep", "material.identify_cli")
 
 
 def build_parser() -> argparse.ArgumentParser:

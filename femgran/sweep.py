@@ -165,7 +165,9 @@ def _run_of(kind: str, values: Mapping, labels: Mapping | None = None) -> Run:
         name = kind.split(":", 1)[1]
         if name not in _IDENTIFY:
             raise ValueError(f"KIND {kind!r}: allowed identify:{' or identify:'.join(_IDENTIFY)}")
-        _check_keywords(kind, _keywords(identify.sweep_target, ("method",)), own)
+        fn = identify.direct_shear if name == "direct-shear" else identify.triaxial
+        _check_keywords(kind, _keywords(identify.sweep_target, ("method",)) + _keywords(fn, ("envelopes", "curves")),
+                        own)
         if material or solver:
             raise ValueError(f"{kind}: material.* and solver.* keys do not apply; use preset=NAME")
         return Run(key, "material.identify:sweep_target", {"method": name, **own}, values)
