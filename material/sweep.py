@@ -42,6 +42,8 @@ from material.table import Table, jsonable
 __all__ = ["Run", "SweepResult", "grid", "key_of", "sweep", "MARKER", "WORKER_ENVIRONMENT"]
 
 MARKER = "sweep_run.json"
+#: How long a study waits for the scheduler at ``scheduler=ADDRESS`` to answer [s].
+CONNECT_TIMEOUT_S = 20
 #: Environment of the LocalCluster's worker processes: one numba and one BLAS thread per process, so
 #: that N processes on N cores do not oversubscribe them (dask's own default sets the BLAS ones).
 WORKER_ENVIRONMENT = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -256,7 +258,7 @@ def _client(scheduler: str | None, workers: int):
 
     if scheduler is not None:
         try:
-            return Client(scheduler, timeout="20s"), None
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
         except OSError as exc:
             raise ValueError(f"scheduler = {scheduler!r}: no Dask scheduler answers there ({exc}); allowed: the "
                              "address a 'dask scheduler' printed, e.g. tcp://10.0.0.5:8786, or none") from None
@@ -326,40 +328,55 @@ def sweep(runs: Iterable[Run], out, *, scheduler: str | None = None, workers: in
         if on_record is not None:
             on_record(rec)
 
+    def say(text):
+        if progress:
+            bar.write(text)
+
     try:
-        if serial or not todo:
+        if serial:
             for run in todo:
                 finished(execute(run, out / run.key))
-        else:
-            from distributed import as_completed
-
-            client, cluster = _client(scheduler, n_workers)
-            try:
-                dashboard = client.dashboard_link if cluster is None or cluster.dashboard_link else None
-                if progress:
-                    where = f"{len(client.scheduler_info().get('workers', {}))} workers at {client.scheduler.address}"
-                    bar.write(f"{title}: {len(todo)} run(s) to do ({skipped} already complete) on {where}"
-                              + (f"; dashboard {dashboard}" if dashboard else ""))
-                futures = {client.submit(execute, run, str((out / run.key).resolve()), key=f"{title}-{run.key}-"
-                                         f"{time.time_ns()}", pure=False): run for run in todo}
-                for future in as_completed(futures):
-                    run = futures[future]
-                    try:
-                        rec = future.result()
-                    except Exception as exc:  # the worker died or could not unpickle the run
-                        rec = _record(run, "failed", f"{type(exc).__name__}: {exc} (the run's worker was lost)")
-                        _write_json((out / run.key) / MARKER, rec) if (out / run.key).is_dir() else None
-                    finished(rec)
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
+        elif todo:
+            dashboard = _on_dask(todo, out, scheduler, n_workers, title, skipped, finished, say)
+    except KeyboardInterrupt:
+        done = sum(r.key in records for r in runs)
+        raise KeyboardInterrupt(f"{title}: interrupted with {done} of {len(runs)} runs complete in {out}; the same "
+                                "study again runs only the others") from None
     finally:
         bar.close()
         counts.update(ran=sum(r.key in records for r in todo))
         _write_summary(out, runs, records, title, counts)
     ordered = [records[r.key] for r in runs]
     return SweepResult(out, ordered, ran=len(todo), skipped=skipped, dashboard=dashboard)
+
+
+def _on_dask(todo: list[Run], out: Path, scheduler, n_workers: int, title: str, skipped: int, finished,
+             say) -> str | None:
+    """Run ``todo`` on a Dask cluster, ``finished(record)`` as each ends; returns the dashboard address."""
+    from distributed import as_completed
+
+    client, cluster = _client(scheduler, n_workers)
+    try:
+        dashboard = client.dashboard_link if cluster is None or cluster.dashboard_link else None
+        workers = len(client.scheduler_info().get("workers", {}))
+        say(f"{title}: {len(todo)} run(s) to do ({skipped} already complete) on {workers} worker(s) at "
+            f"{client.scheduler.address}" + (f"; dashboard {dashboard}" if dashboard else ""))
+        futures = {client.submit(execute, run, str((out / run.key).resolve()), pure=False,
+                                 key=f"{title}-{run.key}-{time.time_ns()}"): run for run in todo}
+        for future in as_completed(futures):
+            run = futures[future]
+            try:
+                rec = future.result()
+            except Exception as exc:  # the worker died (a crash, memory) or could not unpickle the run
+                rec = _record(run, "failed", f"{type(exc).__name__}: {exc} (the run's worker was lost)")
+                if (out / run.key).is_dir():
+                    _write_json(out / run.key / MARKER, rec)
+            finished(rec)
+        return dashboard
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
 
 
 # ------------------------------------------------------------------------------------------ targets

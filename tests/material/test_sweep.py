@@ -54,8 +54,8 @@ from material.sweep import Run, sweep
 
 def main():
     runs = [Run(f"run_{i}", "material.sweep:element",
-                {"test": "triaxial", "steps": 400, "p0_kPa": 50.0 + 10 * i}, {"i": i}) for i in range(8)]
-    sweep(runs, sys.argv[1], scheduler="serial", progress=False)
+                {"test": "triaxial", "steps": 1500, "p0_kPa": 50.0 + 10 * i}, {"i": i}) for i in range(8)]
+    sweep(runs, sys.argv[1], workers=2, progress=False)
 
 if __name__ == "__main__":
     main()
@@ -68,6 +68,8 @@ def _complete(folder):
 
 
 def test_a_study_killed_halfway_completes_only_its_missing_runs(tmp_path):
+    """The study runs on a LocalCluster of two workers in another process; it is killed (with its workers)
+    once three runs are complete; the same study again runs only the others."""
     script = tmp_path / "study.py"
     script.write_text(textwrap.dedent(_STUDY))
     out = tmp_path / "study"
@@ -83,13 +85,13 @@ def test_a_study_killed_halfway_completes_only_its_missing_runs(tmp_path):
     before = _complete(out)
     assert 3 <= len(before) < 8, f"the study was not killed halfway: {before}"
     result = sweep([Run(f"run_{i}", "material.sweep:element",
-                        {"test": "triaxial", "steps": 400, "p0_kPa": 50.0 + 10 * i}, {"i": i}) for i in range(8)],
+                        {"test": "triaxial", "steps": 1500, "p0_kPa": 50.0 + 10 * i}, {"i": i}) for i in range(8)],
                    out, scheduler="serial", progress=False)
     assert result.skipped == len(before) and result.ran == 8 - len(before) and result.completed
     assert _complete(out) == [f"run_{i}" for i in range(8)]
     # a run whose arguments changed is run again, the others are not
     again = sweep([Run(f"run_{i}", "material.sweep:element",
-                       {"test": "triaxial", "steps": 400 if i else 20, "p0_kPa": 50.0 + 10 * i}, {"i": i})
+                       {"test": "triaxial", "steps": 1500 if i else 20, "p0_kPa": 50.0 + 10 * i}, {"i": i})
                    for i in range(8)], out, scheduler="serial", progress=False)
     assert again.ran == 1 and again.skipped == 7 and len(read_csv(out / "run_0" / "triaxial.csv")) == 21
 
@@ -114,3 +116,15 @@ def test_an_unknown_target_is_a_failed_run_not_a_crash(tmp_path):
     assert [r["status"] for r in result.records] == ["failed", "failed"]
     assert "No module named 'material.nothing_here'" in result["x"]["message"]
     assert "element test = 'nope': allowed" in result["y"]["message"]
+
+
+def test_a_study_runs_on_an_existing_dask_cluster(tmp_path, monkeypatch):
+    """``scheduler=ADDRESS``: the runs go to a cluster started elsewhere (here, in this test)."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        result = sweep(_element_runs(steps=10)[:2], tmp_path, scheduler=cluster.scheduler_address, progress=False)
+    assert result.ran == 2 and result.completed
+    monkeypatch.setattr("material.sweep.CONNECT_TIMEOUT_S", 2)
+    with pytest.raises(ValueError, match="no Dask scheduler answers there"):
+        sweep(_element_runs(steps=10)[2:], tmp_path / "x", scheduler="tcp://127.0.0.1:9", progress=False)
