@@ -133,6 +133,20 @@ def _history(folder: Path):
     return History.read_csv(folder / "history.csv")
 
 
+def _curves(ax, runs_dir: Path, runs, labels, x: str, y: str, **labelling) -> None:
+    """One curve y(x) of each run's history, labelled; ``labelling`` sets the axis labels and title."""
+    for (key, _), label in zip(runs, labels):
+        h = _history(runs_dir / key)
+        ax.plot(h[x], h[y], label=label)
+    ax.set(**labelling)
+
+
+def _tidy(*axes) -> None:
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+
+
 def _field_panel(ax, folder: Path, stem: str, title: str):
     """The norm of the plastic strain at the last step of a plane run, cell by cell, with the nodal values as
     points (those are the CSV's data)."""
@@ -173,13 +187,9 @@ def _bearing_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     a1.plot(alphas, [r["summary"]["bearing_capacity_kPa"] for _, r in runs], "o-", label="bearing capacity")
     a1.set(xlabel="deposition angle alpha [deg]", ylabel="bearing capacity [kPa]",
            title="strip footing, CPA ottawa_c109")
-    for (key, rec), a in zip(runs, alphas):
-        h = _history(runs_dir / key)
-        a2.plot(h["settlement_m"], h["pressure_kPa"], label=f"alpha = {a:g}")
-    a2.set(xlabel="settlement [m]", ylabel="mean footing pressure [kPa]", title="load-settlement")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=8)
+    _curves(a2, runs_dir, runs, [f"alpha = {a:g}" for a in alphas], "settlement_m", "pressure_kPa",
+            xlabel="settlement [m]", ylabel="mean footing pressure [kPa]", title="load-settlement")
+    _tidy(a1, a2)
     fig.tight_layout()
     save_figure(fig, out / "bearing_capacity_vs_alpha.png")
     cols = min(2, len(runs))
@@ -216,13 +226,9 @@ def _uniformity_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     a2.axhline(1.0, color="k", lw=0.8)
     a2.set(xlabel="deposition angle alpha [deg]", ylabel="final q of the specimen / element test [-]",
            title="the platens' effect on strength")
-    for (key, _), a in zip(runs, alphas):
-        h = _history(runs_dir / key)
-        a3.plot(h["eps_a"], h["q_kPa"], label=f"alpha = {a:g}")
-    a3.set(xlabel="axial strain (compression +)", ylabel="q = s1 - s3 [kPa]", title="specimens, rough platens")
-    for a in (a1, a2, a3):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=8)
+    _curves(a3, runs_dir, runs, [f"alpha = {a:g}" for a in alphas], "eps_a", "q_kPa",
+            xlabel="axial strain (compression +)", ylabel="q = s1 - s3 [kPa]", title="specimens, rough platens")
+    _tidy(a1, a2, a3)
     fig.tight_layout()
     save_figure(fig, out / "triaxial_nonuniformity_vs_alpha.png")
     return {"triaxial_nonuniformity_vs_alpha": "A triaxial specimen with rough platens: the coefficient of "
@@ -241,17 +247,13 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
         return {}
     sizes = [1e3 * 0.05 / r["values"]["resolution"] for _, r in runs]
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for (key, _), h_mm in zip(runs, sizes):
-        h = _history(runs_dir / key)
-        a1.plot(h["eps_a"], h["q_kPa"], label=f"h = {h_mm:.2f} mm")
-    a1.set(xlabel="axial strain (compression +)", ylabel="q = s1 - s3 [kPa]", title="biaxial with softening")
+    _curves(a1, runs_dir, runs, [f"h = {h_mm:.2f} mm" for h_mm in sizes], "eps_a", "q_kPa",
+            xlabel="axial strain (compression +)", ylabel="q = s1 - s3 [kPa]", title="biaxial with softening")
     a2.plot(sizes, [r["summary"]["band_angle_deg"] for _, r in runs], "o-", label="band angle (FE)")
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         a2.plot(sizes, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     a2.set(xlabel="element size h [mm]", ylabel="angle from the minor stress direction [deg]", title="band angle")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-        a.legend(fontsize=8)
+    _tidy(a1, a2)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_meshes.png")
     fig, axes = plt.subplots(1, len(runs), figsize=(2.6 * len(runs), 4.2), squeeze=False)

@@ -235,7 +235,8 @@ DESCRIPTIONS = {
                                    "(order 1 and order 4, Table 3) against the slopes of the direct-shear envelopes.",
     "fig20_triaxial_p50": "Drained triaxial compression at p0 = 50 kPa, bedding horizontal (alpha 0) and vertical "
                           "(alpha 90): deviator and volumetric strain against axial strain.",
-    "fig21_triaxial_p100": "The same at p0 = 100 kPa.",
+    "fig21_triaxial_p100": "Drained triaxial compression at p0 = 100 kPa, alpha 0 and 90: deviator and volumetric "
+                           "strain against axial strain.",
     "fig45_rotation_beta": "Reshear after a rotation of the principal stress by 0 and 90 deg for three rates beta of "
                            "induced anisotropy: deviator and volumetric strain against the reshear strain.",
     "fig46_rotation_psi": "Reshear after rotations of the principal stress of 0, 45 and 90 deg (beta = 0.1).",
