@@ -14,7 +14,9 @@ rotated frame (principal stress rotation) or as a linear combination (the b valu
 test). The unknown strain increment is found by Newton on these conditions with the law's consistent
 tangent (6x6 Mandel form); the material state is kept at the start of the step and committed on
 convergence. An undrained segment adds the constraint tr(d eps) = 0 per step, whose Lagrange
-multiplier is the excess pore pressure increment (total stress = effective stress - u I, tension +).
+multiplier is the excess pore pressure increment (total stress = effective stress - u I, tension +);
+with pore water of bulk modulus K (``pore_bulk_modulus_kPa``, as in the FE's penalty formulation) the
+constraint is tr(d eps) + d u / K = 0.
 In a drained segment u keeps its last value (no consolidation is modelled; u = 0 unless an undrained
 segment came before), and stress conditions are always on the total stress sigma - u delta.
 
@@ -105,9 +107,12 @@ class Segment:
     relative : (6,) bool ndarray
         Row k's target is a change from the value at the segment start (else absolute).
     undrained : bool
-        Constant volume, excess pore pressure as Lagrange multiplier (see the module docstring).
+        Undrained: the excess pore pressure is the multiplier of the volume condition (module docstring).
     name : str
         Stage label recorded in the ``stage`` column (as an index into ``metadata["stages"]``).
+    pore_compliance : float
+        1 / K of the pore water [1/kPa] in an undrained segment: the volume condition reads
+        tr(d eps) + d u / K = 0; 0 (the default) is constant volume, the limit of incompressible water.
     """
 
     steps: int
@@ -117,6 +122,7 @@ class Segment:
     relative: np.ndarray
     undrained: bool = False
     name: str = ""
+    pore_compliance: float = 0.0
 
     @property
     def stress_rows(self) -> np.ndarray:
@@ -160,7 +166,8 @@ class LoadPath:
         return sum(seg.steps for seg in self.segments)
 
     def add(self, steps: int, *, frame=None, relative_strain: bool = True, relative_stress: bool = False,
-            undrained: bool = False, name: str = "", **components: float) -> "LoadPath":
+            undrained: bool = False, pore_bulk_modulus_kPa: float | None = None, name: str = "",
+            **components: float) -> "LoadPath":
         """Append a segment prescribing each component in stress or in strain.
 
         Parameters
@@ -174,7 +181,12 @@ class LoadPath:
         relative_stress : bool
             Stress targets are changes over the segment, else absolute values (default).
         undrained : bool
-            Constant volume; the excess pore pressure is the multiplier (stress targets are total).
+            Undrained: the excess pore pressure is the multiplier of the volume condition (stress targets
+            are total).
+        pore_bulk_modulus_kPa : float, optional
+            Undrained with pore water of this bulk modulus K = K_w / n [kPa] (the penalty of
+            :class:`material.undrained.Undrained`, so that an FE run and this test model the same water);
+            default: constant volume (K infinite).
         **components
             ``sig_xx=...`` [kPa] or ``eps_zz=...`` [-]; all six components, each once.
         """
@@ -198,10 +210,11 @@ class LoadPath:
             (b if has_s else a)[k] = q[k]
             target[k] = value * (_W[k] if k >= 3 else 1.0)  # Mandel value of a tensor component
             rel[k] = relative_stress if has_s else relative_strain
-        return self.add_conditions(steps, a, b, target, rel, undrained=undrained, name=name)
+        return self.add_conditions(steps, a, b, target, rel, undrained=undrained, name=name,
+                                   pore_bulk_modulus_kPa=pore_bulk_modulus_kPa)
 
     def add_conditions(self, steps: int, A, B, target, relative, *, undrained: bool = False,
-                       name: str = "") -> "LoadPath":
+                       name: str = "", pore_bulk_modulus_kPa: float | None = None) -> "LoadPath":
         """Append a segment given its raw conditions (see :class:`Segment`)."""
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
             raise ValueError(f"steps = {steps!r}: must be an integer >= 1")
@@ -220,7 +233,12 @@ class LoadPath:
                 "undrained segment: no stress condition involves a normal stress, so the pore pressure "
                 "(the multiplier of tr(d eps) = 0) is undetermined; prescribe at least one total normal stress"
             )
-        self.segments.append(Segment(int(steps), a, b, c, rel, bool(undrained), str(name)))
+        compliance = 0.0
+        if pore_bulk_modulus_kPa is not None:
+            if not undrained:
+                raise ValueError(f"pore_bulk_modulus_kPa = {pore_bulk_modulus_kPa!r}: applies to undrained segments only")
+            compliance = 1.0 / check_positive("pore_bulk_modulus_kPa", pore_bulk_modulus_kPa)
+        self.segments.append(Segment(int(steps), a, b, c, rel, bool(undrained), str(name), compliance))
         return self
 
     @classmethod
@@ -415,7 +433,8 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
         if undrained:
             jac[:6, 6] = -b @ _DELTA
             jac[6, :6] = _DELTA
-            res[6] = _DELTA @ d_eps
+            jac[6, 6] = seg.pore_compliance
+            res[6] = _DELTA @ d_eps + seg.pore_compliance * d_u
         try:
             dx = np.linalg.solve(jac, -res)
         except np.linalg.LinAlgError:
@@ -628,7 +647,7 @@ _ZERO_SHEAR = {"sig_yz": 0.0, "sig_xz": 0.0, "sig_xy": 0.0}
 # ---------------------------------------------------------------------------- lab tests
 def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axial_strain: float = 0.15,
              steps: int = 300, drained: bool = True, extension: bool = False, *, rule: str | None = None,
-             **engine) -> ElementResult:
+             pore_bulk_modulus_kPa: float | None = None, **engine) -> ElementResult:
     """Conventional triaxial test: isotropic p0, then axial strain along z at constant cell pressure.
 
     The point starts at the isotropic effective stress -p0 I (for the CPA law ``initial_state(1,
@@ -639,7 +658,9 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
     normal stresses AND the three shear stresses prescribed (sigma_xx = sigma_yy = -p0 total,
     shear stresses 0), so an inclined sample (alpha not 0 or 90) may develop shear strains.
     Undrained (``drained=False``): constant volume; the excess pore pressure u is the multiplier of
-    that constraint, the total lateral stress stays -p0 and the effective stresses are the law's.
+    that constraint, the total lateral stress stays -p0 and the effective stresses are the law's. With
+    ``pore_bulk_modulus_kPa`` K the pore water is compressible, tr(d eps) = -d u / K, the same water as
+    an FE run's ``drainage = "undrained"`` (:class:`material.undrained.Undrained`).
 
     Parameters
     ----------
@@ -675,8 +696,11 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
     model, params = _make_model(model_or_params, alpha_deg, rule)
     path = LoadPath(initial_stress=-p0 * np.eye(3))
     sign = 1.0 if extension else -1.0
+    if drained and pore_bulk_modulus_kPa is not None:
+        raise ValueError(f"pore_bulk_modulus_kPa = {pore_bulk_modulus_kPa!r}: applies to an undrained test "
+                         "(drained=False) only")
     path.add(steps, eps_zz=sign * ea, sig_xx=-p0, sig_yy=-p0, **_ZERO_SHEAR, undrained=not drained,
-             name="extension" if extension else "compression")
+             pore_bulk_modulus_kPa=pore_bulk_modulus_kPa, name="extension" if extension else "compression")
     res = run_path(model, path, **engine)
     eps = res.strain
     q = res["sig_xx_kPa"] * 0.5 + res["sig_yy_kPa"] * 0.5 - res["sig_zz_kPa"]
@@ -687,7 +711,8 @@ def triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, axi
     res.add_column("eta", q / res["p_kPa"], "stress ratio q/p [-]")
     return _finish(res, "triaxial", params,
                    {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps,
-                    "drained": bool(drained), "extension": bool(extension)},
+                    "drained": bool(drained), "extension": bool(extension),
+                    "pore_bulk_modulus_kPa": pore_bulk_modulus_kPa},
                    [("eps_a", "q_kPa"), ("eps_a", "eps_v")] + ([] if drained else [("eps_a", "u_kPa")]))
 
 
