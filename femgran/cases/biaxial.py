@@ -13,9 +13,11 @@ within 0.1 W of the point (0, ``weak_zone_height`` H) of the left face have eta0
 fraction. Placed off mid-height (default H/4) it selects one band out of the symmetric pair a
 mid-height imperfection triggers (the usual trigger of a band that crosses the specimen).
 
-Band inclination: the shear band is located from the increment of the deviatoric strain between the
-peak and the last converged step (:func:`band_angle`: the orientation whose strips collect the most of
-it, the bump's own neighbourhood left out). ``band_angle_deg`` is the angle between the band and the
+The band: measured in the increment of the deviatoric strain between the peak and the last converged
+step (:func:`femgran.band.measure_band`, the bump's own neighbourhood left out): ``band_angle_deg``,
+``band_thickness_m`` (full width at half maximum of the profile across it), ``band_centre_m``,
+``band_contrast`` and ``localised`` in the summary, and ``band.png`` (the field with the band drawn, the
+profile with its fit). ``band_angle_deg`` is the angle between the band and the
 minor principal (lateral, x) stress direction, to compare with Coulomb 45 + phi/2, Roscoe 45 + psi/2 and Arthur
 45 + (phi + psi)/4 (``reference_angles_deg``), phi and psi the peak mobilised friction and dilatancy
 angles from the global response: sin phi = (s1 - s3) / (s1 + s3), sin psi = -(d eps_v) / (d eps_1 - d eps_3)
@@ -28,8 +30,8 @@ thickness t with the crack-band method: the solver passes each point's element s
 scale of the softening becomes ``softening_slip t / h``, so the energy dissipated per unit band area
 does not depend on h (``CPAModel(..., regularise=False)`` gives the mesh-dependent reference).
 ``examples/fe_04_biaxial_meshes.py``
-runs three meshes with and without the regularisation. ``localised`` says whether the strain increment
-concentrates in a band (:func:`band_angle`). ``params["regularisation"]`` records the regularisation used.
+runs three meshes with and without the regularisation. ``params["regularisation"]`` records the
+regularisation used.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from femgran.band import Band, measure_band
 from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet
@@ -49,42 +52,13 @@ __all__ = ["Biaxial", "biaxial", "band_angle"]
 def band_angle(points: np.ndarray, weights: np.ndarray, width: float | None = None,
                exclude: tuple[float, float, float] | None = None,
                search: tuple[float, float] = (15.0, 80.0)) -> tuple[float, bool]:
-    """Inclination of the dominant band of a field, from the x axis [deg, 0..90], and whether it is one.
-
-    points (N, 2) [m], weights (N,) >= 0 (e.g. the shear strain increment). A Radon-type search: for
-    orientation theta (0.5 deg steps, |angle from x| within ``search``: strips along the specimen's
-    faces, which the platens and free sides load, are not bands) the weights are summed in strips of ``width``
-    (default: 1/20 of the cloud's extent) parallel to theta; the band is the orientation whose fullest
-    strip holds the largest share of the total. Conjugate bands (an X) count by the steeper one's
-    |angle| from x: the answer folds theta into 0..90. ``exclude`` = (x, y, r): leave out the points
-    within r of (x, y) (an imperfection, whose local crush would otherwise dominate).
-    ``localised``: the fullest strip holds at least 2.5 x the share a uniform field would give it.
-    """
+    """Inclination of the dominant band of a field from the x axis [deg, 0..90] and whether it is one:
+    :func:`femgran.band.measure_band` with ``width`` as the field's resolution (default: 1/20 of the
+    cloud's extent)."""
     x = np.asarray(points, float)
-    w = np.asarray(weights, float).copy()
-    if exclude is not None:
-        w[np.hypot(x[:, 0] - exclude[0], x[:, 1] - exclude[1]) < exclude[2]] = 0.0
-    if not np.any(w > 0):
-        return float("nan"), False
-    extent = float(np.max(np.ptp(x, axis=0)))
-    b = extent / 20.0 if width is None else float(width)
-    deg = np.arange(0.0, 180.0, 0.5)
-    fold = np.where(deg <= 90.0, deg, 180.0 - deg)
-    thetas = np.radians(deg[(fold >= search[0]) & (fold <= search[1])])
-    best, best_theta, uniform = -1.0, 0.0, 0.0
-    c = x - x.mean(axis=0)
-    for t in thetas:
-        d = -np.sin(t) * c[:, 0] + np.cos(t) * c[:, 1]  # signed distance from a line at angle t
-        edges = np.arange(d.min(), d.max() + b, b)
-        sums = np.histogram(d, bins=edges, weights=w)[0]
-        counts = np.histogram(d, bins=edges)[0]
-        share = sums.max() / w.sum()
-        if share > best:
-            k = int(np.argmax(sums))
-            best, best_theta, uniform = share, t, counts[k] / max(counts.sum(), 1)
-    angle = float(np.degrees(best_theta))
-    angle = angle if angle <= 90.0 else 180.0 - angle
-    return angle, bool(best >= 2.5 * uniform)
+    h = float(np.max(np.ptp(x, axis=0))) / 20.0 if width is None else float(width)
+    band = measure_band(x, weights, element_size=h, exclude=exclude, search=search)
+    return band.angle_deg, band.localised
 
 
 COLUMNS = {"eps_a": "axial strain [-], compression +",
@@ -179,14 +153,16 @@ class Biaxial(Drainage):
 
     def summarise(self, sol, problem) -> dict:
         if len(sol.history) > 1:
-            return _peak_and_band(sol, problem.data["snaps"], problem.disc, float(self.p0_kPa), float(self.width_m),
+            return _peak_and_band(sol, problem.data, problem.disc, float(self.p0_kPa), float(self.width_m),
                                   2 * float(self.width_m), float(self.imperfection))
         nan = float("nan")  # no converged step: nothing to measure
-        return dict(band_angle_deg=nan, localised=False, peak_friction_deg=nan, peak_dilatancy_deg=nan,
+        return dict(**Band.none().summary(), peak_friction_deg=nan, peak_dilatancy_deg=nan,
                     peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
 
     def plots(self, sol, problem, out_dir: Path) -> None:
         _plots(sol, out_dir)
+        if "band" in problem.data:
+            _band_plot(*problem.data["band"], out_dir / "band.png")
 
 
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
@@ -219,7 +195,7 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
                output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)
 
 
-def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> dict:
+def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float) -> dict:
     """Peak friction and dilatancy from the global response, and the band of the strain increment after the peak."""
     h = sol.history
     xq = d.quadrature_points()
@@ -233,14 +209,14 @@ def _peak_and_band(sol, snaps, d, p0: float, W: float, H: float, imp: float) -> 
     k0, k1 = max(k - 1, 0), min(k + 1, len(q) - 1)
     de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
     psi = float(np.degrees(np.arcsin(np.clip(-(de1 + de3) / (de1 - de3), -1, 1)))) if de1 != de3 else float("nan")
-    dstrain = np.asarray(sol.state["strain"]) - snaps[k].astype(float)
+    dstrain = np.asarray(sol.state["strain"]) - data["snaps"][k].astype(float)
     dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
     h_el = float(d.element_size().max())
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
-    angle, localised = band_angle(xq, gamma, width=max(2 * h_el, W / 10), exclude=exclude)
-    return dict(band_angle_deg=angle, localised=localised, peak_friction_deg=phi, peak_dilatancy_deg=psi,
-                peak_q_kPa=q_max,
+    band = measure_band(xq, gamma, element_size=h_el, exclude=exclude)
+    data["band"] = (band, xq, gamma)  # for the band plot
+    return dict(**band.summary(), peak_friction_deg=phi, peak_dilatancy_deg=psi, peak_q_kPa=q_max,
                 reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
 
 
@@ -266,6 +242,41 @@ def _regularisation(mat) -> str:
     if p is not None and getattr(p, "softening_slip", 0.0) > 0:
         return f"crack band: softening slip scale {p.softening_slip:g} m x t / h (t = {p.t:g} m)"
     return "none (no softening in the material)"
+
+
+def _band_plot(band: Band, points, intensity, path: Path) -> None:
+    """The strain increment after the peak with the measured band (centre line, +- half its thickness), and
+    the profile across it with its fit; PNG and CSV (:func:`material.plotting.save_figure`)."""
+    import matplotlib.pyplot as plt
+
+    from material.plotting import save_figure
+
+    fig, (ax, pr) = plt.subplots(1, 2, figsize=(9, 5), gridspec_kw={"width_ratios": [1, 1.3]})
+    sc = ax.scatter(points[:, 0], points[:, 1], c=intensity, s=6, cmap="viridis", label="Gauss points")
+    fig.colorbar(sc, ax=ax, label="deviatoric strain increment after the peak")
+    if np.isfinite(band.angle_deg):
+        t, c = np.asarray(band.direction), np.asarray(band.centre)
+        n, L = np.array([-t[1], t[0]]), float(np.ptp(points, axis=0).max())
+        style = "-" if band.localised else ":"
+        half = band.thickness_m if band.localised else 0.0
+        for k, (off, label) in enumerate(((0.0, "band centre line"), (0.5, "half thickness"), (-0.5, None))):
+            a, b = c + off * half * n - L * t, c + off * half * n + L * t
+            ax.plot([a[0], b[0]], [a[1], b[1]], style, color="k" if k == 0 else "r", lw=1.2, label=label)
+        ax.set_xlim(points[:, 0].min(), points[:, 0].max())
+        ax.set_ylim(points[:, 1].min(), points[:, 1].max())
+        dist, mean, fit = band.profile
+        pr.plot(1e3 * dist, mean, "o", ms=3, label="mean in strips")
+        pr.plot(1e3 * dist, fit, "-", label=f"fit: thickness {1e3 * band.thickness_m:.2f} mm" if band.localised
+                else "fit: no band")
+    ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]",
+           title=(f"band at {band.angle_deg:.1f} deg" if band.localised else "no localised band"))
+    ax.legend(fontsize=7, loc="lower right")
+    pr.set(xlabel="distance across the band [mm]", ylabel="deviatoric strain increment",
+           title=f"contrast {band.contrast:.2f}")
+    pr.legend(fontsize=8)
+    pr.grid(alpha=0.3)
+    fig.tight_layout()
+    save_figure(fig, path)
 
 
 def _plots(sol, out_dir: Path) -> None:
