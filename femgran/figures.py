@@ -12,8 +12,9 @@ complete) and a drawing step that reads the run folders:
   curves and the failure mechanisms;
 * ``uniformity`` -- the non-uniformity of a triaxial specimen with rough platens against the deposition
   angle, and its strength against the homogeneous element test;
-* ``shear-band`` -- the plane-strain biaxial test with softening on three meshes: curves, band angle
-  against the element size and the bands.
+* ``shear-band`` -- the plane-strain biaxial test with softening on three meshes: curves, band angle and
+  thickness against the element size (:mod:`femgran.band`), the bands, and the band angle against the
+  deposition angle (0, 30, 60, 90 on the middle mesh).
 
 Every PNG has a CSV of the same stem with what it draws; ``OUT/README.md`` lists each figure with a
 sentence on what it shows. The default is a reduced size (coarse meshes, few steps, DEM samples at a
@@ -116,11 +117,18 @@ _BAND_MATERIAL = {"preset": "ottawa_c109", "stabilisation": 0.1,
                   "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65}}
 
 
-def _band_runs(full: bool) -> list[Run]:
+def _band_setup(full: bool) -> tuple[list[int], dict]:
     meshes = [8, 12, 16] if full else [4, 6, 8]
     fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 0.01, "imperfection": 0.0,
              **({"axial_strain": 0.06, "steps": 240} if full else {"axial_strain": 0.05, "steps": 60})}
-    return _case_runs("biaxial", "resolution", meshes, fixed, _BAND_MATERIAL)
+    return meshes, fixed
+
+
+def _band_runs(full: bool) -> list[Run]:
+    meshes, fixed = _band_setup(full)
+    return (_case_runs("biaxial", "resolution", meshes, fixed, _BAND_MATERIAL)
+            + _case_runs("biaxial", "alpha_deg", [30.0, 60.0, 90.0], {**fixed, "resolution": meshes[1]},
+                         _BAND_MATERIAL, prefix="band_alpha"))
 
 
 def _completed(records: dict, prefix: str) -> list[tuple[str, dict]]:
@@ -245,15 +253,20 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     runs = sorted(_completed(records, "biaxial_"), key=lambda kr: kr[1]["values"]["resolution"])
     if not runs:
         return {}
+    drawn = _band_alpha_draw(runs_dir, records, out, full)
     sizes = [1e3 * 0.05 / r["values"]["resolution"] for _, r in runs]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(14, 4))
     _curves(a1, runs_dir, runs, [f"h = {h_mm:.2f} mm" for h_mm in sizes], "eps_a", "q_kPa",
             xlabel="axial strain (compression +)", ylabel="q = s1 - s3 [kPa]", title="biaxial with softening")
     a2.plot(sizes, [r["summary"]["band_angle_deg"] for _, r in runs], "o-", label="band angle (FE)")
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         a2.plot(sizes, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     a2.set(xlabel="element size h [mm]", ylabel="angle from the minor stress direction [deg]", title="band angle")
-    _tidy(a1, a2)
+    a3.plot(sizes, [1e3 * r["summary"].get("band_thickness_m", np.nan) for _, r in runs], "o-",
+            label="band thickness (FE)")
+    a3.plot(sizes, [3 * h for h in sizes], "k:", label="3 elements")
+    a3.set(xlabel="element size h [mm]", ylabel="band thickness [mm]", title="band thickness (crack band)")
+    _tidy(a1, a2, a3)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_meshes.png")
     fig, axes = plt.subplots(1, len(runs), figsize=(2.6 * len(runs), 4.2), squeeze=False)
@@ -261,10 +274,43 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
         pc = _field_panel(ax, runs_dir / key, "biaxial", f"h = {h_mm:.2f} mm")
     fig.colorbar(pc, ax=axes[0].tolist(), label="|plastic strain|", shrink=0.8)
     save_figure(fig, out / "shear_band_fields.png")
-    return {"shear_band_meshes": "The plane-strain biaxial test with softening on three meshes (crack-band "
-                                 "regularised): curves, and the band angle against the element size with the "
-                                 "Coulomb, Roscoe and Arthur angles.",
+    return {**drawn,
+            "shear_band_meshes": "The plane-strain biaxial test with softening on three meshes (crack-band "
+                                 "regularised): curves, the band angle against the element size with the "
+                                 "Coulomb, Roscoe and Arthur angles, and the band's measured thickness.",
             "shear_band_fields": "The shear bands: plastic strain at the end of each run, one panel per mesh."}
+
+
+def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
+    """Band angle against the deposition angle (the middle mesh of the study at alpha 0 and the alpha runs)."""
+    import matplotlib.pyplot as plt
+
+    from material.plotting import save_figure
+
+    meshes, _ = _band_setup(full)
+    runs = [kr for kr in _completed(records, "biaxial_") if kr[1]["values"]["resolution"] == meshes[1]]
+    runs += _completed(records, "band_alpha_")
+    if len(runs) < 2:
+        return {}
+    alphas = [r["kwargs"]["fields"].get("alpha_deg", 0.0) for _, r in runs]
+    order = np.argsort(alphas)
+    alphas = np.asarray(alphas)[order]
+    runs = [runs[i] for i in order]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    angle = np.array([r["summary"]["band_angle_deg"] for _, r in runs])
+    band = np.array([bool(r["summary"].get("localised")) for _, r in runs])
+    ax.plot(alphas, angle, "-", color="C0", lw=0.8)
+    ax.scatter(alphas[band], angle[band], color="C0", label="band angle (FE): a band")
+    ax.scatter(alphas[~band], angle[~band], facecolors="none", edgecolors="C0", label="no band: the most band-like")
+    for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
+        ax.plot(alphas, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
+    ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
+           title=f"biaxial with softening, {meshes[1]} elements across")
+    _tidy(ax)
+    fig.tight_layout()
+    save_figure(fig, out / "shear_band_vs_alpha.png")
+    return {"shear_band_vs_alpha": "The band angle of the softening biaxial test against the deposition angle, "
+                                   "with the Coulomb, Roscoe and Arthur angles from each run's own peak."}
 
 
 GROUPS: dict[str, Group] = {
