@@ -118,7 +118,10 @@ def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
     pts.revert()
     solver._committed_tangent = _unpack_tangent(arrays)
-    solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"]) * scale) if "last_du" in arrays else None
+    solver._last_increment = None
+    if "last_du" in arrays:  # (du, dt) of the last step, and its dc under path control
+        solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"]) * scale) + \
+            ((float(info["last_dc"]),) if info.get("last_dc") is not None else ())
     return {"dt": float(info["dt"]) * scale, "n_step": int(info["n_step"]), "history": info["history"],
             "residual_log": info["residual_log"]}
 
@@ -170,6 +173,7 @@ class Checkpointer:
         info = {"format": FORMAT, "femgran_version": __version__, "t": solver.t, "dt": run_state["dt"], "n_step": n,
                 "stage": int(getattr(solver, "stage", 0)),
                 "last_dt": None if last is None else float(last[1]),
+                "last_dc": None if last is None or len(last) < 3 else float(last[2]),
                 "history": run_state["history"].rows(),
                 "residual_log": [list(map(float, r)) for r in run_state["residual_log"]],
                 "writer": None if writer is None else writer.state(),

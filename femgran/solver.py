@@ -21,6 +21,18 @@ The algorithm (one load step from load factor t_n to t_{n+1} = t_n + dt):
    explodes) the state is reverted and dt is cut by the points' suggested step ratio (at most 1/2).
    After ``max_cuts`` successive cuts, or dt < dt_min, the run stops cleanly: every converged step is
    already saved and the returned :class:`Solution` says why it stopped.
+
+Path following (``run(..., control=PathControl(...), control_end=c)``): where the response snaps back
+(a softening band that unloads the rest of the body elastically faster than it opens), no load factor
+and no prescribed displacement grows monotonically along the path. Indirect displacement control then
+prescribes, step by step, a quantity that does, c(u) = sum_i w_i u_i (e.g. the opening of the band),
+and makes the load factor t an unknown of each step: Newton solves the bordered system
+
+    K_ff ddu_f + (K_fD ubar_D - f_ramp,f) dt = -r_f,      w . ddu = c_target - c(u)
+
+by two solves with K_ff (ubar_D = d u_D / d t); the steps run in c / c_end from 0 to 1, so step sizes,
+cut-backs and dt_min read as in load control. The constraint is linear, so it holds after the first
+iteration; the iterations take full steps (a line search would scale the constraint's correction too).
 """
 
 from __future__ import annotations
@@ -35,8 +47,8 @@ import scipy.sparse.linalg as spla
 from femgran.state import PointState
 from material.table import Table, read_table
 
-__all__ = ["Dirichlet", "SolverOptions", "Solution", "History", "NewtonSolver", "LinearSolver", "linear_solve",
-           "LINEAR_SOLVERS", "HISTORY_COLUMNS", "history_descriptions"]
+__all__ = ["Dirichlet", "PathControl", "SolverOptions", "Solution", "History", "NewtonSolver", "LinearSolver",
+           "linear_solve", "LINEAR_SOLVERS", "HISTORY_COLUMNS", "history_descriptions"]
 
 LINEAR_SOLVERS = ("auto", "superlu", "amg-gmres", "ilu-gmres")
 PREDICTORS = ("tangent", "extrapolate", "none")
@@ -68,6 +80,26 @@ class Dirichlet:
 
     def at(self, t: float) -> np.ndarray:
         return self.values * t if self.ramp else self.values
+
+
+@dataclass
+class PathControl:
+    """Indirect displacement control (module docstring): the quantity c(u) = sum_i weights_i u[dofs_i]
+    [m], measured from the start of the stage, grows by a prescribed amount in every step; the load
+    factor follows. ``name`` is its history column."""
+
+    dofs: np.ndarray
+    weights: np.ndarray
+    name: str = "control"
+
+    def __post_init__(self):
+        self.dofs = np.asarray(self.dofs, dtype=np.int64).ravel()
+        self.weights = np.broadcast_to(np.asarray(self.weights, dtype=float), self.dofs.shape).copy()
+        if self.dofs.size == 0 or not np.all(np.isfinite(self.weights)) or not np.any(self.weights):
+            raise ValueError(f"PathControl {self.name}: needs DOFs and finite, not all zero, weights")
+
+    def value(self, u: np.ndarray) -> float:
+        return float(self.weights @ u[self.dofs])
 
 
 @dataclass
@@ -475,6 +507,64 @@ class NewtonSolver:
         raise _StepFailure(f"no convergence in {opt.max_iter} iterations (residual {residuals[-1]:.2e}; "
                            f"last residuals {tail})")
 
+    def step_controlled(self, control: PathControl, c_new: float, *, step: int = 0, attempt: int = 0):
+        """One step of path following: to c(u - u_start) = ``c_new``, the load factor an unknown.
+
+        Returns (du, t_new, iterations, residuals); raises ``_StepFailure`` as :meth:`step` does."""
+        opt = self.options
+        self.log.start_try()
+        if self.linear is not None:
+            self.linear.new_step()
+        n = self.disc.ndofs
+        w = np.zeros(n)
+        np.add.at(w, control.dofs, control.weights)
+        ubar = np.zeros(n)
+        ubar[self.constrained] = self.prescribed(1.0) - self.prescribed(0.0)
+        dc = c_new - control.value(self.u - self.u_start)
+        du, t_new = np.zeros(n), self.t
+        last = self._last_increment
+        if last is not None and len(last) == 3 and attempt == 0 and last[2] != 0.0:
+            du_last, _, dc_last = self._last_increment  # the last converged step, scaled to this one
+            du = du_last * (dc / dc_last)
+            t_new = self.t + (self._last_increment[1]) * (dc / dc_last)
+            du[self.constrained] = self.prescribed(t_new) - self.u[self.constrained]
+        residuals = []
+        for it in range(opt.max_iter + 1):
+            try:
+                r, tangent = self._evaluate(du, t_new)
+            except _StepFailure:
+                self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=np.nan,
+                                line_search=1.0, accepted=False, state=self.points.trial_state,
+                                committed=self.points.state)
+                raise
+            rf, ref = self._norms(r, t_new)
+            g = float(w @ du) - dc
+            residuals.append(rf / ref)
+            self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=rf / ref,
+                            line_search=1.0, accepted=True, state=self.points.trial_state, committed=self.points.state)
+            if residuals[-1] <= opt.tol and abs(g) <= 1e-10 * max(abs(dc), 1e-300):
+                return du, t_new, it, residuals
+            if it == opt.max_iter:
+                break
+            K = self.disc.stiffness(tangent)
+            q = K @ ubar - self.f_ramp  # d r / d t
+            x1 = self._solve_free(K, -r[self.free], min(1e-3, 0.1 * residuals[-1]))
+            x2 = self._solve_free(K, -q[self.free], 1e-10)
+            wf = w[self.free]
+            denominator = float(wf @ x2 + w[self.constrained] @ ubar[self.constrained])
+            if denominator == 0.0 or not np.isfinite(denominator):
+                raise _StepFailure(f"path control {control.name}: the controlled quantity does not respond to "
+                                   "the load here (choose DOFs that open with the mechanism)")
+            dt = (-g - float(wf @ x1)) / denominator
+            du[self.free] += x1 + dt * x2
+            du[self.constrained] += dt * ubar[self.constrained]
+            t_new += dt
+            if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
+                raise _StepFailure("Newton diverging")
+        tail = ", ".join(f"{x:.1e}" for x in residuals[-6:])
+        raise _StepFailure(f"no convergence in {opt.max_iter} iterations under path control (residual "
+                           f"{residuals[-1]:.2e}; last residuals {tail})")
+
     def _line_search(self, evaluate, du, ddu, it, rf):
         """Step length s along the Newton direction ddu: the first trial with a sufficient decrease of |r|.
 
@@ -522,7 +612,8 @@ class NewtonSolver:
     # ------------------------------------------------------------------ driver
     def run(self, steps: int = 10, t_end: float = 1.0, *, dt_max: float | None = None, writer=None,
             progress: bool = False, observers=(), fixed_steps: bool = False, descriptions: dict | None = None,
-            resume: dict | None = None, after_step=None, close_writer: bool = True) -> Solution:
+            resume: dict | None = None, after_step=None, close_writer: bool = True,
+            control: PathControl | None = None, control_end: float | None = None) -> Solution:
         """Load from t = 0 to ``t_end`` in nominally ``steps`` equal steps, cutting back and regrowing dt.
 
         writer : object with ``write(t, solver)`` called after every converged step (and once at t = 0).
@@ -538,11 +629,23 @@ class NewtonSolver:
             run cleanly with that reason (an interruption).
         fixed_steps : no regrowth at all after a cut-back (equal steps whenever nothing fails, e.g. to
             compare step by step with material.driver).
+        control, control_end : path following (module docstring): the steps go from c = 0 to
+            ``control_end`` [m] of the :class:`PathControl` quantity (t_end is then not used; the run's
+            "position" c / control_end plays the part of t in the step sizes).
         """
         opt = self.options
         steps = int(steps)
         if steps < 1:
             raise ValueError(f"steps = {steps}: must be >= 1")
+        if control is not None:
+            if control_end is None or not np.isfinite(control_end) or control_end == 0.0:
+                raise ValueError(f"control_end = {control_end!r}: path control needs the end value of "
+                                 f"{control.name} (finite, not 0)")
+            t_end = 1.0  # the position c / control_end runs from 0 to 1
+
+        def position() -> float:
+            return self.t if control is None else control.value(self.u - self.u_start) / control_end
+
         dt0 = float(t_end) / steps
         dt_max = dt0 if dt_max is None else float(dt_max)
         dt = dt0
@@ -562,28 +665,34 @@ class NewtonSolver:
             bar.update(self.t)  # a resumed run starts where its checkpoint was
         if resume is None:
             row = self._row(0, 0, [0.0], 0, observers)
+            if control is not None:
+                row[control.name] = control.value(self.u - self.u_start)
             history.append(row)
             if writer is not None:
                 writer.write(self.time_offset, self, row)
         completed, reason = False, ""
         cuts, n_step = 0, (0 if resume is None else n_step0)
         self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
-        while self.t < t_end * (1 - 1e-12):
-            dt = min(dt, t_end - self.t)
-            t_new = self.t + dt
+        while position() < t_end * (1 - 1e-12):
+            dt = min(dt, t_end - position())
             t0 = time.perf_counter()
             try:
-                du, iters, residuals = self.step(t_new, step=n_step + 1, attempt=cuts)
+                if control is None:
+                    t_new = self.t + dt
+                    du, iters, residuals = self.step(t_new, step=n_step + 1, attempt=cuts)
+                else:
+                    du, t_new, iters, residuals = self.step_controlled(control, (position() + dt) * control_end,
+                                                                       step=n_step + 1, attempt=cuts)
             except _StepFailure as exc:
                 self.points.revert()
                 cuts += 1
                 ratio = min(0.5, max(exc.ratio, 0.1))
                 dt *= ratio
                 if cuts > opt.max_cuts:
-                    reason = f"stopped at t = {self.t:.6g}: {exc.reason}; {cuts - 1} cut-backs did not help"
+                    reason = f"stopped at {self._where(control, position())}: {exc.reason}; {cuts - 1} cut-backs did not help"
                     break
                 if dt < opt.dt_min:
-                    reason = (f"stopped at t = {self.t:.6g}: {exc.reason}; the next load step, {dt:.2g}, would be "
+                    reason = (f"stopped at {self._where(control, position())}: {exc.reason}; the next load step, {dt:.2g}, would be "
                               f"below dt_min = {opt.dt_min:g} (the steps had already been cut to {dt / ratio:.2g})")
                     break
                 if bar is not None:
@@ -591,12 +700,15 @@ class NewtonSolver:
                 continue
             self.points.commit()
             self._committed_tangent = self.points.tangent
-            self._last_increment = (du, t_new - self.t)
+            self._last_increment = (du, t_new - self.t) if control is None else \
+                (du, t_new - self.t, control.value(du))
             self.u = self.u + du
             self.t = t_new
             n_step += 1
             residual_log.append(residuals)
             row = self._row(n_step, iters, residuals, cuts, observers)
+            if control is not None:
+                row[control.name] = control.value(self.u - self.u_start)
             row["wall_time_s"] = time.perf_counter() - t0
             history.append(row)
             if writer is not None:
@@ -613,7 +725,8 @@ class NewtonSolver:
                 reason = stop
                 break
         else:
-            completed, reason = True, f"reached t = {t_end:g}"
+            completed, reason = True, (f"reached t = {t_end:g}" if control is None
+                                       else f"reached {control.name} = {control_end:g}")
         if bar is not None:
             bar.close()
         if writer is not None and close_writer:
@@ -621,6 +734,11 @@ class NewtonSolver:
         return Solution(u=self.u.copy(), stress=self.points.stress.copy(), state=self.points.state,
                         history=history, completed=completed, stop_reason=reason,
                         out_dir=getattr(writer, "out_dir", None), residuals=residual_log)
+
+    def _where(self, control, position: float) -> str:
+        if control is None:
+            return f"t = {self.t:.6g}"
+        return f"{control.name} = {control.value(self.u - self.u_start):.6g} (t = {self.t:.6g})"
 
     def _row(self, n_step, iters, residuals, cuts, observers):
         r = self.disc.internal_force(self.points.stress) - self.external(self.t)

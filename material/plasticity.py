@@ -104,8 +104,12 @@ class VonMises(_Base):
     yield_stress_kPa : float
         Initial uniaxial yield stress sigma_y [kPa], > 0 (the shear strength is sigma_y / sqrt(3)).
     hardening_kPa : float, optional
-        Linear isotropic hardening modulus H [kPa], >= 0 (0: perfectly plastic), with respect to the
-        equivalent plastic strain eps_bar_p = integral of sqrt(2/3 d_eps_p : d_eps_p).
+        Linear isotropic hardening modulus H [kPa] (0: perfectly plastic), with respect to the
+        equivalent plastic strain eps_bar_p = integral of sqrt(2/3 d_eps_p : d_eps_p). Negative: linear
+        softening, H > -3 G (below it the strain-driven update has no unique solution), the yield stress
+        floored at 0 (perfectly plastic at zero strength from eps_bar_p = sigma_y / |H| on). Softening
+        without a length scale localises in one row of elements: it serves to test path following
+        (:class:`femgran.solver.PathControl`), where a snap-back is known in closed form.
 
     Notes
     -----
@@ -118,7 +122,10 @@ class VonMises(_Base):
     def __init__(self, E_kPa: float, nu: float, yield_stress_kPa: float, hardening_kPa: float = 0.0):
         self._init_elastic(E_kPa, nu)
         self.yield_stress = _check_nonneg("yield_stress_kPa", yield_stress_kPa, strict=True)
-        self.hardening = _check_nonneg("hardening_kPa", hardening_kPa)
+        self.hardening = float(hardening_kPa)
+        if not (np.isfinite(self.hardening) and self.hardening > -3.0 * self.G):
+            raise ValueError(f"hardening_kPa = {hardening_kPa!r}: must be > -3 G = {-3.0 * self.G:g} (finite; negative "
+                             "values soften)")
 
     def __repr__(self) -> str:
         return (
@@ -126,9 +133,13 @@ class VonMises(_Base):
             f"hardening_kPa={self.hardening:g})"
         )
 
+    def strength(self, eq_plastic_strain) -> np.ndarray:
+        """sigma_y + H eps_bar_p, floored at 0 [kPa]."""
+        return np.maximum(self.yield_stress + self.hardening * np.asarray(eq_plastic_strain, dtype=float), 0.0)
+
     def yield_function(self, stress: np.ndarray, eq_plastic_strain: np.ndarray) -> np.ndarray:
-        """f = q - (sigma_y + H eps_bar_p) [kPa], (N,)."""
-        return von_mises_stress(stress) - (self.yield_stress + self.hardening * np.asarray(eq_plastic_strain))
+        """f = q - max(sigma_y + H eps_bar_p, 0) [kPa], (N,)."""
+        return von_mises_stress(stress) - self.strength(eq_plastic_strain)
 
     def update(self, d_strain, stress, state: State):
         """(N,3,3) strain increment and stress (tension +) -> stress, new state, tangent (N,3,3,3,3)."""
@@ -137,10 +148,14 @@ class VonMises(_Base):
         s_tr = _dev(trial)
         norm_tr = _norm(s_tr)
         q_tr = np.sqrt(1.5) * norm_tr
-        f_tr = q_tr - (self.yield_stress + H * state["eq_plastic_strain"])
+        f_tr = q_tr - self.strength(state["eq_plastic_strain"])
         plastic = f_tr > 1e-12 * self.yield_stress
         safe_q = np.where(plastic, q_tr, 1.0)
         dgamma = np.where(plastic, f_tr / (3.0 * G + H), 0.0)
+        if H < 0.0:  # softening past zero strength: perfectly plastic at q = 0 (H = 0 there)
+            spent = plastic & (self.yield_stress + H * (state["eq_plastic_strain"] + dgamma) < 0.0)
+            dgamma = np.where(spent, q_tr / (3.0 * G), dgamma)
+            H = np.where(spent, 0.0, H)
         N = s_tr / np.where(plastic, norm_tr, 1.0)[:, None, None]  # unit deviator (used where plastic)
         scale = 1.0 - 3.0 * G * dgamma / safe_q
         new_stress = trial - (1.0 - scale)[:, None, None] * s_tr
@@ -152,7 +167,8 @@ class VonMises(_Base):
             tangent[p] = (
                 K * _II
                 + 2.0 * G * scale[p][:, None, None, None, None] * _IDEV
-                + (6.0 * G**2 * (dgamma[p] / q_tr[p] - 1.0 / (3.0 * G + H)))[:, None, None, None, None]
+                + (6.0 * G**2 * (dgamma[p] / q_tr[p] - 1.0 / (3.0 * G + np.broadcast_to(H, n)[p])))
+                [:, None, None, None, None]
                 * np.einsum("nij,nkl->nijkl", Np, Np)
             )
         return new_stress, self._new_state(state, de, d_plastic, dgamma), tangent

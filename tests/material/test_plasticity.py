@@ -164,8 +164,8 @@ def test_von_mises_vectorised_matches_pointwise():
 def test_von_mises_bad_input():
     with pytest.raises(ValueError, match="yield_stress_kPa"):
         VonMises(E, NU, -1.0)
-    with pytest.raises(ValueError, match="hardening_kPa"):
-        VonMises(E, NU, 10.0, hardening_kPa=-5.0)
+    with pytest.raises(ValueError, match="hardening_kPa = .*must be > -3 G"):
+        VonMises(E, NU, 10.0, hardening_kPa=-2.0 * E / (1 + NU))
     with pytest.raises(ValueError, match="nu"):
         VonMises(E, 0.5, 10.0)
     m = VonMises(E, NU, 10.0)
@@ -286,3 +286,34 @@ def test_drucker_prager_bad_input():
         DruckerPrager(E, NU, -1.0, 30.0)
     with pytest.raises(ValueError, match="no strength"):
         DruckerPrager(E, NU, 0.0, 0.0)
+
+
+def test_von_mises_softening_is_linear_then_floored_at_zero_with_a_consistent_tangent():
+    """H < 0: uniaxial (plane-strain-free) shear softens q = sigma_y + H eps_bar_p down to 0, then stays there;
+    the tangent is the derivative of the update on the softening branch."""
+    G = E / (2 * (1 + NU))
+    law = VonMises(E, NU, 10.0, hardening_kPa=-0.1 * G)
+    st, sig = law.initial_state(1), np.zeros((1, 3, 3))
+    gam = np.zeros((1, 3, 3))
+    gam[0, 0, 1] = gam[0, 1, 0] = 4e-5  # simple shear increments
+    qs, eps = [], []
+    for _ in range(1000):
+        sig, st, D = law.update(gam, sig, st)
+        qs.append(float(np.sqrt(1.5) * np.linalg.norm(sig[0] - np.trace(sig[0]) / 3 * np.eye(3))))
+        eps.append(float(st["eq_plastic_strain"][0]))
+    qs, eps = np.array(qs), np.array(eps)
+    soft = (eps > 0) & (eps < 10.0 / (0.1 * G) * 0.9)
+    assert np.allclose(qs[soft], 10.0 - 0.1 * G * eps[soft], rtol=1e-10, atol=1e-9)
+    assert qs[-1] == pytest.approx(0.0, abs=1e-9) and eps[-1] > 10.0 / (0.1 * G)  # spent: zero strength
+    # tangent on the softening branch against central differences
+    st2, sig2 = law.initial_state(1), np.zeros((1, 3, 3))
+    for _ in range(60):
+        sig2, st2, _ = law.update(gam, sig2, st2)
+    de = gam + np.array([[[1e-6, 0, 0], [0, -2e-6, 0], [0, 0, 0.5e-6]]])
+    s0, _, D = law.update(de, sig2, st2)
+    h = 1e-10
+    for k, l in ((0, 0), (0, 1), (2, 2)):
+        e = np.zeros((1, 3, 3))
+        e[0, k, l] = e[0, l, k] = h
+        fd = (law.update(de + e, sig2, st2)[0] - law.update(de - e, sig2, st2)[0]) / (2 * h)
+        np.testing.assert_allclose(np.einsum("nijkl,nkl->nij", D, e) / h, fd, rtol=1e-6, atol=1e-3)
