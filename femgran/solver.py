@@ -559,7 +559,7 @@ class NewtonSolver:
             du[self.free] += x1 + dt * x2
             du[self.constrained] += dt * ubar[self.constrained]
             t_new += dt
-            if it >= 3 and residuals[-1] > 1e4 * residuals[0]:
+            if it >= 3 and residuals[-1] > 1e4 * residuals[1]:  # [0] may be the committed state's: ~0
                 raise _StepFailure("Newton diverging")
         tail = ", ".join(f"{x:.1e}" for x in residuals[-6:])
         raise _StepFailure(f"no convergence in {opt.max_iter} iterations under path control (residual "

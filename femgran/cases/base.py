@@ -83,6 +83,8 @@ class Stage:
     f_ramp: np.ndarray | None = None
     steps: int = 1
     elastic: bool = False  # linear elasticity with the law's E and nu; at the end the law starts from the stress
+    control: object = None  # femgran.solver.PathControl: path following to control_end (the load factor follows)
+    control_end: float | None = None
 
 
 def _elastic_twin(law):
@@ -119,6 +121,8 @@ class Problem:
     stages : a staged run (:class:`Stage`), each from the end state of the one before; the history gets the
         columns ``stage`` and ``time`` (stage k spans k..k+1), as does the field series. None: one stage of
         ``dirichlet``, ``f_fixed`` and the case's ``steps``.
+    control, control_end : path following of the single stage (:class:`femgran.solver.PathControl`): the
+        steps prescribe its quantity up to ``control_end`` and the load factor follows (past a snap-back).
     """
 
     disc: object
@@ -132,6 +136,8 @@ class Problem:
     fixed_steps: bool = False
     data: dict = field(default_factory=dict)
     stages: list | None = None
+    control: object = None
+    control_end: float | None = None
 
 
 @dataclass(frozen=True)
@@ -205,7 +211,8 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     log = newton_log(out_dir, saved[1]["newton_log_rows"] if continuing else None)
     newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
                           initial_stress=problem.initial_stress, options=options, log=log)
-    stages = problem.stages or [Stage(case.name, problem.dirichlet, problem.f_fixed, None, case.steps)]
+    stages = problem.stages or [Stage(case.name, problem.dirichlet, problem.f_fixed, None, case.steps,
+                                      control=problem.control, control_end=problem.control_end)]
     k0 = 0 if saved is None else int(saved[1].get("stage", 0))
     law = problem.material
     if problem.stages:
@@ -259,7 +266,8 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
             newton.stage, newton.time_offset = k, float(k) if problem.stages else 0.0
             sol = newton.run(stage.steps, writer=writer, progress=output.progress, observers=observers,
                              fixed_steps=problem.fixed_steps, descriptions=columns, resume=run_state,
-                             after_step=after_step, close_writer=False)
+                             after_step=after_step, close_writer=False, control=stage.control,
+                             control_end=stage.control_end)
             if not sol.completed:
                 if problem.stages:
                     sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"

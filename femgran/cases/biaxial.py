@@ -44,7 +44,7 @@ import numpy as np
 from femgran.band import Band, measure_band
 from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
-from femgran.solver import Dirichlet
+from femgran.solver import Dirichlet, PathControl
 
 __all__ = ["Biaxial", "biaxial", "band_angle"]
 
@@ -89,6 +89,9 @@ class Biaxial(Drainage):
     weak_zone: float = param(0.0, "relative drop of eta0 near (0, weak_zone_height H) (CPA; 0: none)")
     weak_zone_height: float = param(0.25, "height of the weak zone / H, in (0, 1)")
     platens: str = param("smooth", "'smooth' (end faces slide freely) or 'rough'")
+    control_strain: float = param(0.0, "path following: 0 = the platen displacement drives the test; > 0 = the "
+                                       "lateral expansion of the specimen (mean face displacements / W, extension +) "
+                                       "drives it to this value and the platen follows, past a snap-back")
 
     def __post_init__(self):
         check_positive("p0_kPa", self.p0_kPa)
@@ -103,6 +106,7 @@ class Biaxial(Drainage):
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 2")
         if not 0 <= check_positive("weak_zone", self.weak_zone, allow_zero=True) < 0.5:
             raise ValueError(f"weak_zone = {self.weak_zone!r}: allowed 0 <= weak_zone < 0.5")
+        check_positive("control_strain", self.control_strain, allow_zero=True)
         if self.weak_zone > 0 and not 0.0 < float(self.weak_zone_height) < 1.0:
             raise ValueError(f"weak_zone_height = {self.weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
 
@@ -147,9 +151,18 @@ class Biaxial(Drainage):
             snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
             return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
 
-        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=COLUMNS,
-                       record={"height_m": H, "vertical_axis": "y", "regularisation": _regularisation(mat)},
-                       data={"snaps": snaps})
+        control = None
+        if self.control_strain > 0:  # the lateral expansion: mean u_x of the right face minus that of the left
+            control = PathControl(np.concatenate([rx, lx]), np.concatenate([np.full(rx.size, 1.0 / rx.size),
+                                                                            np.full(lx.size, -1.0 / lx.size)]),
+                                  name="lateral_expansion_m")
+        columns = COLUMNS if control is None else \
+            {**COLUMNS, "lateral_expansion_m": "the controlled lateral expansion, mean u_x right - left face [m]"}
+        return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=columns,
+                       record={"height_m": H, "vertical_axis": "y", "regularisation": _regularisation(mat),
+                               "control": "lateral expansion" if control is not None else "platen displacement"},
+                       data={"snaps": snaps}, control=control,
+                       control_end=float(self.control_strain) * W if control is not None else None)
 
     def summarise(self, sol, problem) -> dict:
         if len(sol.history) > 1:

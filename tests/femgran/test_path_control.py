@@ -80,3 +80,23 @@ def test_a_control_without_dofs_or_end_is_named():
     d, law, bcs, opening = _bar()
     with pytest.raises(ValueError, match="control_end = None"):
         NewtonSolver(d, law, bcs).run(steps=2, control=opening)
+
+
+def test_the_biaxial_case_under_lateral_control_follows_the_load_controlled_path():
+    """Biaxial(control_strain=...) prescribes the lateral expansion and lets the platen follow: on a
+    rate-independent law (Drucker-Prager) the two controls trace the same curve (measured: 0.7 kPa of 244,
+    the interpolation between the 40 steps of each), with fewer iterations per step (1.0 against 1.5)."""
+    from femgran.cases import Output, run
+    from femgran.cases.biaxial import Biaxial
+    from material import DruckerPrager
+
+    dp = DruckerPrager(3e4, 0.3, 1.0, 35.0, 5.0)
+    load = run(Biaxial(resolution=4, axial_strain=0.02, steps=40), dp, output=Output(None)).history
+    lateral = run(Biaxial(resolution=4, axial_strain=0.02, steps=40, control_strain=0.012), dp,
+                  output=Output(None)).history
+    assert lateral["lateral_expansion_m"][-1] == pytest.approx(0.012 * 0.05, rel=1e-12)
+    inside = lateral["eps_a"] <= load["eps_a"][-1]
+    q_load = np.interp(lateral["eps_a"][inside], load["eps_a"], load["q_kPa"])
+    assert np.abs(lateral["q_kPa"][inside] - q_load).max() <= 5e-3 * load["q_kPa"].max()
+    with pytest.raises(ValueError, match="control_strain = -1"):
+        Biaxial(control_strain=-1.0)
