@@ -11,13 +11,11 @@ Coverage of the 95 % intervals, measured while writing these tests (same set-ups
   nu 98, eta_c_ratio 96 %; all four 90 %). The test uses seed 1.
 """
 
-import argparse
-import time
 
 import numpy as np
 import pytest
 
-from material import driver, identify, identify_cli, load_parameters, load_preset
+from material import driver, identify, load_parameters, load_preset
 from material.anisotropy import axes_from_alpha, series
 from material.cpa import CPAModel
 from material.table import Table, read_table
@@ -167,10 +165,8 @@ def test_triaxial_recovers_known_constants_within_ci(clean_curves, tmp_path):
     eta_c_ratio +30 %, nu the preset's 0.33): each known value lies in its 95 % interval. The parameter
     file written loads and gives the fitted values."""
     start = {"A": 1.3 * TRUTH["A"], "E": 0.7 * TRUTH["E"], "nu": 0.33, "eta_c_ratio": 1.3 * TRUTH["eta_c_ratio"]}
-    t0 = time.perf_counter()
     res = identify.triaxial(_noisy(clean_curves, seed=1), preset="ottawa_c109", start=start, steps=24)
-    elapsed = time.perf_counter() - t0
-    print(f"triaxial fit: {elapsed:.1f} s, {res.info['simulations']} simulations\n{res.summary()}")
+    print(f"triaxial fit: {res.info['simulations']} simulations\n{res.summary()}")
     assert res.names == ("A", "E", "nu", "eta_c_ratio")
     for name, value in TRUTH.items():
         lo, hi = res.interval(name)
@@ -178,7 +174,6 @@ def test_triaxial_recovers_known_constants_within_ci(clean_curves, tmp_path):
         assert hi - lo < 0.1 * value  # and the intervals are informative
     assert res.r2["q_kPa"] > 0.99 and res.r2["eps_v"] > 0.99
     assert res.info["softening"] == {} and res.info["incomplete_simulations"] == 0
-    assert elapsed < 30.0
 
     paths = res.write(tmp_path / "tx", command="test")
     loaded = load_parameters(paths["parameters"])
@@ -248,8 +243,8 @@ def test_curve_formats(tmp_path, clean_curves):
 def test_cli_writes_the_run_folder(tmp_path, clean_curves):
     """``femgran identify direct-shear fig8`` and ``femgran identify triaxial FILE ...`` write
     parameters.toml, fit.csv, curve.csv, fit.png and run.json."""
-    parser = argparse.ArgumentParser(prog="femgran")
-    identify_cli.register(parser.add_subparsers(dest="command"))
+    from femgran.cli import main
+
     c = clean_curves[0]
     lab = tmp_path / "p50.csv"
     rows = zip(c["eps_a"], c["q_kPa"], c["eps_v"])
@@ -261,9 +256,7 @@ def test_cli_writes_the_run_folder(tmp_path, clean_curves):
                "--no-progress"],
     }
     for key, argv in runs.items():
-        args = parser.parse_args(argv)
-        args._argv = argv
-        assert args.func(args) == 0
+        assert main(argv) == 0
         out = tmp_path / key
         assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "fit.csv", "fit.png", "parameters.toml",
                                                          "run.json"]
@@ -271,6 +264,4 @@ def test_cli_writes_the_run_folder(tmp_path, clean_curves):
     assert load_parameters(tmp_path / "tx" / "parameters.toml").A == pytest.approx(TRUTH["A"], rel=1e-6)
     assert len(load_parameters(tmp_path / "ds" / "parameters.toml").a) == 1
 
-    args = parser.parse_args(["identify", "direct-shear", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "x")])
-    with pytest.raises(FileNotFoundError, match="missing.csv"):
-        args.func(args)
+    assert main(["identify", "direct-shear", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "x")]) == 2
