@@ -133,11 +133,38 @@ def _check_keywords(kind: str, allowed: list[str], own: Mapping) -> None:
         raise ValueError(f"{kind}: unknown key(s) {unknown}; allowed {allowed} and material.NAME, solver.NAME")
 
 
+def _check_material(kind: str, material: Mapping) -> None:
+    """The CPA parameter changes of a study, checked against the parameter set before anything runs."""
+    if material.get("law", "cpa") != "cpa" or not material.get("set"):
+        return
+    from material.commandline import with_changes
+    from material.parameters import load_parameters, load_preset
+
+    base = load_parameters(material["parameters"]) if "parameters" in material else \
+        load_preset(material.get("preset", "ottawa_c109"))
+    try:
+        with_changes(base, dict(material["set"]))
+    except KeyError as exc:
+        raise ValueError(f"{kind}: material.*: {exc.args[0] if exc.args else exc}") from None
+
+
+def _check_types(kind: str, cls, own: Mapping) -> None:
+    """A value of the wrong kind for a case field is named with what is allowed (before anything runs)."""
+    types = {f.name: str(f.type).split("|")[0].strip() for f in dataclasses.fields(cls)}
+    for key, value in own.items():
+        want = types.get(key)
+        if want in ("float", "int") and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ValueError(f"{kind}: {key} = {value!r}: allowed a number")
+        if want == "bool" and not isinstance(value, bool):
+            raise ValueError(f"{kind}: {key} = {value!r}: allowed true or false")
+
+
 def _run_of(kind: str, values: Mapping, labels: Mapping | None = None) -> Run:
     """The :class:`Run` of ``kind`` with the flat ``values`` (validated here, before anything runs)."""
     from femgran.cases.casefile import case_types
 
     own, material, solver = _split(kind, values)
+    _check_material(kind, material)
     key = key_of({k: v for k, v in values.items()}, labels) if values else "run"
     if kind.startswith("element:"):
         from material import driver
@@ -176,6 +203,7 @@ def _run_of(kind: str, values: Mapping, labels: Mapping | None = None) -> Run:
         raise ValueError(f"KIND {kind!r}: allowed {sorted(kinds())}")
     cls = cases[kind]
     _check_keywords(kind, [f.name for f in dataclasses.fields(cls)], own)
+    _check_types(kind, cls, own)
     cls(**own)  # validates the values now, with the case's own messages
     from femgran.cases.common import solver_options
 

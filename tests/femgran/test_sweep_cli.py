@@ -68,6 +68,8 @@ def test_a_list_of_points_and_the_run_keys():
     (["cavity", "--grid", "p0_kPa=0,50", "--set", "material.law=von_mises", "material.beta=5"], "law 'von_mises' has"),
     (["nothing"], "KIND 'nothing': allowed"),
     (["element:triaxial", "--grid", "p0_kPa"], "expected KEY=VALUE"),
+    (["footing", "--grid", "alpha_deg=abc"], "footing: alpha_deg = 'abc': allowed a number"),
+    (["element:triaxial", "--set", "material.nope=3"], "material.*: unknown parameter(s) ['nope']"),
 ])
 def test_bad_studies_are_named_before_anything_runs(argv, match, tmp_path, capsys):
     assert main(["sweep", *argv, "--out", str(tmp_path / "o"), "--no-progress"]) == 2
