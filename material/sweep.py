@@ -263,13 +263,13 @@ def _client(scheduler: str | None, workers: int):
             raise ValueError(f"scheduler = {scheduler!r}: no Dask scheduler answers there ({exc}); allowed: the "
                              "address a 'dask scheduler' printed, e.g. tcp://10.0.0.5:8786, or none") from None
     try:
-        import bokeh  # noqa: F401  (the dashboard is served only with bokeh installed)
-
-        dashboard = ":0"
-    except ImportError:  # pragma: no cover - bokeh is a dependency
-        dashboard = None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-                           silence_logs=logging.ERROR, env=dict(WORKER_ENVIRONMENT))
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env=dict(WORKER_ENVIRONMENT))  # ":0": any free port
+    except RuntimeError as exc:
+        raise RuntimeError(f"the local Dask cluster could not start its {workers} worker process(es) ({exc}). The "
+                           "workers are spawned: a script that runs a study needs the `if __name__ == "
+                           "\"__main__\":` guard (and cannot be read from stdin); or run it with "
+                           "scheduler=\"serial\"") from None
     return Client(cluster), cluster
 
 
@@ -357,7 +357,7 @@ def _on_dask(todo: list[Run], out: Path, scheduler, n_workers: int, title: str, 
 
     client, cluster = _client(scheduler, n_workers)
     try:
-        dashboard = client.dashboard_link if cluster is None or cluster.dashboard_link else None
+        dashboard = client.dashboard_link
         workers = len(client.scheduler_info().get("workers", {}))
         say(f"{title}: {len(todo)} run(s) to do ({skipped} already complete) on {workers} worker(s) at "
             f"{client.scheduler.address}" + (f"; dashboard {dashboard}" if dashboard else ""))
