@@ -23,7 +23,7 @@ from numba import njit, prange
 
 import skfem
 
-__all__ = ["Discretisation", "element_for", "element_stiffness_reference"]
+__all__ = ["Discretisation", "discretisation_for", "element_for", "element_stiffness_reference"]
 
 # element and quadrature order per (mesh type, polynomial order): full Gauss for Q1/Q2/H1/H2,
 # exact stiffness on straight simplices
@@ -199,6 +199,7 @@ class Discretisation:
         self.dx = np.ascontiguousarray(b.dx)
         self.n_points = self.nelems * self.nqp
         self.ndofs = self.dim * b.N
+        self.n_displacement_dofs = self.ndofs  # a coupled discretisation appends its own fields' DOFs
         sd = b.element_dofs.T  # (nel, nbf) scalar dofs
         self.edofs = np.ascontiguousarray((self.dim * sd[:, :, None] + np.arange(self.dim)).reshape(self.nelems, -1))
         self._pattern = None
@@ -270,8 +271,16 @@ class Discretisation:
             eps[:, idx, idx] += self.c * dtheta[:, None]
         return eps
 
-    def internal_force(self, stress: np.ndarray) -> np.ndarray:
-        """f_int_(a,i) = sum_q dx sigma_ij dN_a,j, (ndofs,) [kN]; ``stress`` (N, 3, 3) kPa."""
+    def point_inputs(self, du: np.ndarray) -> dict:
+        """Extra inputs of the material's ``update`` for the increment ``du`` (none here; a coupled
+        discretisation, :class:`femgran.gradient.GradientDiscretisation`, passes its field's increment)."""
+        return {}
+
+    def internal_force(self, stress: np.ndarray, tangent=None, u=None) -> np.ndarray:
+        """f_int_(a,i) = sum_q dx sigma_ij dN_a,j, (ndofs,) [kN]; ``stress`` (N, 3, 3) kPa.
+
+        ``tangent`` and ``u`` (the material's tangent and the full unknown vector) are what a coupled
+        discretisation needs for the rows of its other fields; the displacement rows use neither."""
         d = self.dim
         s = np.asarray(stress)[:, :d, :d].reshape(self.nelems, self.nqp, d, d)
         fe = np.einsum("eqij,eqaj,eq->eai", s, self.dN, self.dx, optimize=True)
@@ -350,7 +359,7 @@ class Discretisation:
             def form(v, w, c=c):
                 return density(w, c) * v
 
-            out[c::self.dim] += form.assemble(fb)
+            out[: self.n_displacement_dofs][c::self.dim] += form.assemble(fb)
         return out
 
     def _cell_load(self, density):
@@ -360,5 +369,17 @@ class Discretisation:
             def form(v, w, c=c):
                 return density(c) * v
 
-            out[c::self.dim] += form.assemble(self.basis)
+            out[: self.n_displacement_dofs][c::self.dim] += form.assemble(self.basis)
         return out
+
+
+def discretisation_for(material, mesh, order: int = 1, volumetric: str = "standard") -> Discretisation:
+    """The discretisation ``material`` needs on ``mesh``: the displacement alone, or, for a gradient-enhanced
+    law (one with a ``nonlocal_length``, :mod:`material.base`), the displacement and the nodal nonlocal field
+    (:class:`femgran.gradient.GradientDiscretisation`, its equation scaled by the law's Young's modulus E)."""
+    length = getattr(material, "nonlocal_length", None)
+    if length is None:
+        return Discretisation(mesh, order, volumetric)
+    from femgran.gradient import GradientDiscretisation
+
+    return GradientDiscretisation(mesh, order, volumetric, length=length, scale=float(material.E))

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from material.base import CoupledTangent
 from material.table import jsonable
 
 __all__ = ["Checkpointer", "latest", "load", "restore", "identity_changes", "FORMAT"]
@@ -33,16 +34,28 @@ _I = np.array([p[0] for p in _PAIRS])
 _J = np.array([p[1] for p in _PAIRS])
 
 
-def _pack_tangent(T: np.ndarray) -> tuple[str, np.ndarray]:
+def _pack_tangent(T) -> dict[str, np.ndarray]:
     """The committed tangent in as few numbers as keep it exactly: the 36 independent entries when it has
-    both minor symmetries to the bit (the CPA kernel's does), otherwise all 81."""
+    both minor symmetries to the bit (the CPA kernel's does), otherwise all 81; a gradient law's
+    :class:`material.base.CoupledTangent` adds its other fields as ``coupled__<field>``."""
+    if isinstance(T, CoupledTangent):
+        out = {f"coupled__{k}": np.asarray(v) for k, v in T._asdict().items() if k != "dstress_dstrain"}
+        return {**out, **_pack_tangent(T.dstress_dstrain)}
     T = np.asarray(T)
     if np.array_equal(T, T.swapaxes(1, 2)) and np.array_equal(T, T.swapaxes(3, 4)):
-        return "tangent36", np.ascontiguousarray(T[:, _I[:, None], _J[:, None], _I[None, :], _J[None, :]])
-    return "tangent", T
+        return {"tangent36": np.ascontiguousarray(T[:, _I[:, None], _J[:, None], _I[None, :], _J[None, :]])}
+    return {"tangent": T}
 
 
-def _unpack_tangent(arrays: dict) -> np.ndarray | None:
+def _unpack_tangent(arrays: dict):
+    T = _unpack_stress_strain(arrays)
+    coupled = {k[len("coupled__"):]: arrays[k].copy() for k in arrays if k.startswith("coupled__")}
+    if T is None or not coupled:
+        return T
+    return CoupledTangent(dstress_dstrain=T, **coupled)
+
+
+def _unpack_stress_strain(arrays: dict) -> np.ndarray | None:
     if "tangent" in arrays:
         return arrays["tangent"].copy()
     if "tangent36" in arrays:
@@ -164,8 +177,7 @@ class Checkpointer:
         arrays = {"u": solver.u, "u_start": solver.u_start, "stress": pts.stress,
                   **{f"state__{k}": np.asarray(v) for k, v in pts.state.items()}}
         if solver._committed_tangent is not None:
-            key, packed = _pack_tangent(solver._committed_tangent)
-            arrays[key] = packed
+            arrays.update(_pack_tangent(solver._committed_tangent))
         last = solver._last_increment
         if last is not None:
             arrays["last_du"] = last[0]

@@ -164,13 +164,15 @@ class SeriesWriter:
         mesh = disc.mesh
         nv = mesh.p.shape[1]
         d = disc.dim
-        u = solver.u.reshape(-1, d)[:nv]
+        u = solver.u[: disc.n_displacement_dofs].reshape(-1, d)[:nv]
         points = np.zeros((nv, 3))
         points[:, :d] = mesh.p.T
         disp = np.zeros((nv, 3))
         disp[:, :d] = u
         fields = point_fields(solver)
         point_data = {"displacement": disp}
+        if hasattr(disc, "nonlocal_field"):
+            point_data["nonlocal"] = disc.nonlocal_field(solver.u)
         cell_data = {}
         w = disc.dx / disc.dx.sum(axis=1, keepdims=True)
         for key, val in fields.items():

@@ -399,12 +399,12 @@ class NewtonSolver:
     def _evaluate(self, du, t):
         """Material update for the trial increment du; residual r (ndofs,), failed mask."""
         de = self.disc.strain(du)
-        stress, tangent, failed = self.points.evaluate(de)
+        stress, tangent, failed = self.points.evaluate(de, **self.disc.point_inputs(du))
         if failed.any():
             where = getattr(self.points.material, "replay_dir", None)
             hint = f" (their inputs: {where})" if where is not None else ""
             raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}", self.points.suggested_ratio())
-        r = self.disc.internal_force(stress) - self.external(t)
+        r = self.disc.internal_force(stress, tangent, self.u + du) - self.external(t)
         if not np.all(np.isfinite(r)):
             raise _StepFailure("residual not finite")
         return r, tangent
@@ -425,7 +425,9 @@ class NewtonSolver:
             pairs = [(0, 1)] if d == 2 else [(0, 1), (1, 2), (0, 2)]
             for i, j in pairs:
                 m = np.zeros((ns, d)); m[:, i] = -x[:, j]; m[:, j] = x[:, i]; modes.append(m.ravel())
-            self._near_nullspace = np.column_stack(modes)[self.free]
+            full = np.zeros((self.disc.ndofs, len(modes)))  # zero on the DOFs of a coupled field
+            full[: ns * d] = np.column_stack(modes)
+            self._near_nullspace = full[self.free]
         return self._near_nullspace
 
     def _solve_free(self, K, rhs_free, rtol=None):
@@ -443,10 +445,12 @@ class NewtonSolver:
     def _predict(self, du, t_new):
         """Tangent predictor: K_n du = f_ext(t_new) - f_int(sigma_n) with the prescribed part of du."""
         if self._committed_tangent is None:
-            _, self._committed_tangent, _ = self.points.evaluate(np.zeros((self.disc.n_points, 3, 3)))
+            zero = np.zeros(self.disc.ndofs)
+            _, self._committed_tangent, _ = self.points.evaluate(np.zeros((self.disc.n_points, 3, 3)),
+                                                                 **self.disc.point_inputs(zero))
             self.points.revert()
         K = self.disc.stiffness(self._committed_tangent)
-        r0 = self.disc.internal_force(self.points.stress) - self.external(t_new)
+        r0 = self.disc.internal_force(self.points.stress, self._committed_tangent, self.u) - self.external(t_new)
         rhs = -(r0 + K @ du)[self.free]
         du = du.copy()
         du[self.free] = self._solve_free(K, rhs, 1e-3)

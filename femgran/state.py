@@ -47,13 +47,14 @@ class PointState:
         self.trial_state = copy_state(self.state)
         self.tangent = None
 
-    def evaluate(self, d_strain: np.ndarray):
+    def evaluate(self, d_strain: np.ndarray, **inputs):
         """Material update over the step increment ``d_strain`` (N, 3, 3) from the committed state.
 
-        Returns ``(stress, tangent, failed)`` with ``failed`` the (N,) mask of STATUS_FAILED points.
-        The result is kept as the trial (end-of-step) state.
+        ``inputs``: further increments a coupled discretisation passes (``d_nonlocal``). Returns
+        ``(stress, tangent, failed)`` with ``failed`` the (N,) mask of STATUS_FAILED points. The result is
+        kept as the trial (end-of-step) state.
         """
-        stress, state, tangent = self.material.update(d_strain, self.stress, self.state)
+        stress, state, tangent = self.material.update(d_strain, self.stress, self.state, **inputs)
         self.trial_stress, self.trial_state, self.tangent = stress, state, tangent
         failed = np.asarray(state["status"]) == STATUS_FAILED
         return stress, tangent, failed

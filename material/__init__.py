@@ -8,7 +8,7 @@ from material.parameters import CPAParameters, load_parameters, load_preset, sav
 from material import anisotropy, base
 from material.elastic import LinearElastic
 from material.cpa import CPAModel
-from material.plasticity import DruckerPrager, VonMises
+from material.plasticity import DruckerPrager, GradientVonMises, VonMises
 from material import driver
 
 __all__ = [
@@ -22,5 +22,6 @@ __all__ = [
     "CPAModel",
     "driver",
     "VonMises",
+    "GradientVonMises",
     "DruckerPrager",
 ]

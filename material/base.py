@@ -21,16 +21,30 @@ A material object has two methods::
   - ``"strain"`` (N, 3, 3): the total strain (tension positive), accumulated by ``update``.
 
   Laws add their own internal variables (plastic strain, hardening variables, ...).
+
+Gradient-enhanced laws (implicit gradient regularisation of softening; :mod:`femgran.gradient` solves the
+coupled problem) take one more input and return a richer tangent::
+
+    stress, state, tangent = material.update(d_strain, stress, state, d_nonlocal=d_ebar)
+
+* ``material.nonlocal_length`` [m]: the length l of the Helmholtz equation ebar - l^2 lap(ebar) = e that
+  links the nodal nonlocal field ebar to the law's local measure e (e.g. the equivalent plastic strain).
+* ``d_nonlocal`` (N,): the step's increment of ebar at the points; ``state["nonlocal"]`` keeps the
+  committed ebar.
+* ``tangent`` is then a :class:`CoupledTangent` of the five point quantities the coupled assembly needs.
+  Without ``d_nonlocal`` the law is local (ebar = e, as in any homogeneous test) and the tangent is the
+  ordinary (N, 3, 3, 3, 3) array.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 __all__ = [
     "Material",
+    "CoupledTangent",
     "STATUS_OK",
     "STATUS_SUBSTEPPED",
     "STATUS_FAILED",
@@ -49,6 +63,21 @@ STATUS_SUBSTEPPED = 1
 STATUS_FAILED = 2
 
 State = dict[str, np.ndarray]
+
+
+class CoupledTangent(NamedTuple):
+    """The response of a gradient-enhanced law at N points, for the coupled (u, ebar) Newton system.
+
+    ``dstress_dstrain`` (N, 3, 3, 3, 3) kPa, ``dstress_dnonlocal`` (N, 3, 3) kPa, ``local`` (N,) the local
+    measure e at the end of the step, ``dlocal_dstrain`` (N, 3, 3) and ``dlocal_dnonlocal`` (N,): all
+    derivatives of the end-of-step values with respect to the step's increments of strain and of ebar.
+    """
+
+    dstress_dstrain: np.ndarray
+    dstress_dnonlocal: np.ndarray
+    local: np.ndarray
+    dlocal_dstrain: np.ndarray
+    dlocal_dnonlocal: np.ndarray
 
 
 class Material(Protocol):

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from material.base import STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.base import STATUS_OK, CoupledTangent, State, as_stress_batch, check_batch, check_state
 from material.elastic import _check_elastic, isotropic_stiffness
 
-__all__ = ["VonMises", "DruckerPrager", "von_mises_stress"]
+__all__ = ["VonMises", "GradientVonMises", "DruckerPrager", "von_mises_stress"]
 
 _I2 = np.eye(3)
 _II = np.einsum("ij,kl->ijkl", _I2, _I2)  # 1 (x) 1
@@ -173,6 +173,115 @@ class VonMises(_Base):
             )
         return new_stress, self._new_state(state, de, d_plastic, dgamma), tangent
 
+
+
+class GradientVonMises(VonMises):
+    """Von Mises softening regularised by an implicit gradient of the equivalent plastic strain.
+
+    The strength is driven by the over-nonlocal variable kappa_hat = m ebar + (1 - m) kappa (Vermeer &
+    Brinkgreve 1994; Stroemberg & Ristinmaa 1996), sigma_y(kappa_hat) = max(sigma_y0 + H kappa_hat, 0),
+    where kappa is the point's equivalent plastic strain (the local measure e) and ebar the nodal field that
+    solves ebar - l^2 lap(ebar) = kappa with zero normal gradient on the boundary (Peerlings et al. 1996 for
+    damage, Engelen, Geers & Baaijens 2003 for plasticity). In a homogeneous state ebar = kappa and the law
+    is :class:`VonMises` with the modulus H; inside a band ebar < kappa, which with m > 1 spreads the
+    softening over a width set by l instead of one row of elements. m = 1 (the nonlocal variable alone)
+    lets the plastic zone keep shrinking as the softening goes on (Jirasek & Rolshoven 2003); the default
+    m = 2 keeps it finite.
+
+    Parameters
+    ----------
+    E_kPa, nu, yield_stress_kPa, hardening_kPa : as :class:`VonMises`; the local modulus
+        H_loc = (1 - m) H must satisfy 3 G + H_loc > 0.
+    length_m : float
+        The internal length l [m], > 0.
+    over_nonlocal : float
+        m >= 1.
+
+    Notes
+    -----
+    With ebar given (the coupled Newton iterates on it), the radial return is that of :class:`VonMises`
+    with H replaced by H_loc and sigma_y0 by sigma_y0 + m H ebar: a = 3 G + H_loc,
+    dgamma = (q* - sigma_y0 - H (m ebar + (1 - m) kappa_n)) / a, and with N = s*/|s*|
+
+        d sigma / d ebar = sqrt(6) G H m / a N,     d kappa / d eps = sqrt(6) G / a N,
+        d kappa / d ebar = -H m / a
+
+    (zero where the point is elastic; where the strength is spent, sigma_y = 0, a = 3 G and the
+    derivatives with respect to ebar vanish).
+    """
+
+    def __init__(self, E_kPa: float, nu: float, yield_stress_kPa: float, hardening_kPa: float = 0.0, *,
+                 length_m: float, over_nonlocal: float = 2.0):
+        super().__init__(E_kPa, nu, yield_stress_kPa, hardening_kPa)
+        self.nonlocal_length = _check_nonneg("length_m", length_m, strict=True)
+        m = float(over_nonlocal)
+        if not (np.isfinite(m) and m >= 1.0):
+            raise ValueError(f"over_nonlocal = {over_nonlocal!r}: must be >= 1 (finite)")
+        self.over_nonlocal = m
+        if not 3.0 * self.G + (1.0 - m) * self.hardening > 0.0:
+            raise ValueError(f"over_nonlocal = {m:g} with hardening_kPa = {self.hardening:g}: the local modulus "
+                             f"(1 - m) H = {(1.0 - m) * self.hardening:g} must be > -3 G = {-3.0 * self.G:g}")
+
+    def __repr__(self) -> str:
+        return (f"GradientVonMises(E_kPa={self.E:g}, nu={self.nu:g}, yield_stress_kPa={self.yield_stress:g}, "
+                f"hardening_kPa={self.hardening:g}, length_m={self.nonlocal_length:g}, "
+                f"over_nonlocal={self.over_nonlocal:g})")
+
+    def initial_state(self, n_points: int, stress=None, *, element_size=None) -> State:
+        """As :meth:`VonMises.initial_state`, plus the committed nonlocal variable ``"nonlocal"`` (N,) = 0."""
+        state = super().initial_state(n_points, stress, element_size=element_size)
+        state["nonlocal"] = np.zeros(int(n_points))
+        return state
+
+    def update(self, d_strain, stress, state: State, d_nonlocal=None):
+        """The local law (ebar = kappa) without ``d_nonlocal``; with it (N,), the update at the given
+        ebar = state["nonlocal"] + d_nonlocal and a :class:`material.base.CoupledTangent`."""
+        if d_nonlocal is None:
+            new_stress, new_state, tangent = super().update(d_strain, stress, state)
+            new_state["nonlocal"] = new_state["eq_plastic_strain"].copy()
+            return new_stress, new_state, tangent
+        de, trial, n = self._trial(d_strain, stress, state)
+        check_state(state, n, ("nonlocal",))
+        dnl = np.asarray(d_nonlocal, dtype=float)
+        if dnl.shape != (n,) or not np.all(np.isfinite(dnl)):
+            raise ValueError(f"d_nonlocal: expected a finite array of shape ({n},), got {dnl.shape}")
+        G, K, H, m = self.G, self.K, self.hardening, self.over_nonlocal
+        ebar = state["nonlocal"] + dnl
+        kappa_n = state["eq_plastic_strain"]
+        s_tr = _dev(trial)
+        norm_tr = _norm(s_tr)
+        q_tr = np.sqrt(1.5) * norm_tr
+        driving = self.yield_stress + H * (m * ebar + (1.0 - m) * kappa_n)  # sigma_y at the start of the return
+        plastic = q_tr - np.maximum(driving, 0.0) > 1e-12 * self.yield_stress
+        a = 3.0 * G + (1.0 - m) * H
+        dgamma = np.where(plastic, (q_tr - driving) / a, 0.0)
+        spent = plastic & (driving + (1.0 - m) * H * dgamma < 0.0)  # strength reaches 0: perfectly plastic there
+        dgamma = np.where(spent, q_tr / (3.0 * G), dgamma)
+        a_pt = np.where(spent, 3.0 * G, a)
+        h_pt = np.where(spent, 0.0, (1.0 - m) * H)
+        safe_q = np.where(plastic, q_tr, 1.0)
+        N = s_tr / np.where(plastic, norm_tr, 1.0)[:, None, None]
+        scale = 1.0 - 3.0 * G * dgamma / safe_q
+        new_stress = trial - (1.0 - scale)[:, None, None] * s_tr
+        d_plastic = (1.5 * dgamma / safe_q)[:, None, None] * s_tr
+        tangent = np.broadcast_to(self.stiffness, (n, 3, 3, 3, 3)).copy()
+        ds_de = np.zeros((n, 3, 3))
+        dk_deps = np.zeros((n, 3, 3))
+        dk_de = np.zeros(n)
+        if plastic.any():
+            p = plastic
+            Np = N[p]
+            tangent[p] = (K * _II + 2.0 * G * scale[p][:, None, None, None, None] * _IDEV
+                          + (6.0 * G**2 * (dgamma[p] / q_tr[p] - 1.0 / (3.0 * G + h_pt[p])))[:, None, None, None, None]
+                          * np.einsum("nij,nkl->nijkl", Np, Np))
+            coupled = p & ~spent
+            dk_de[coupled] = -H * m / a_pt[coupled]
+            ds_de[coupled] = (np.sqrt(6.0) * G * H * m / a_pt[coupled])[:, None, None] * N[coupled]
+            dk_deps[p] = (np.sqrt(6.0) * G / a_pt[p])[:, None, None] * Np
+        new_state = self._new_state(state, de, d_plastic, dgamma)
+        new_state["nonlocal"] = ebar
+        kappa = new_state["eq_plastic_strain"]
+        return new_stress, new_state, CoupledTangent(tangent, ds_de, kappa, dk_deps, dk_de)
 
 _MATCH = ("compression", "extension", "plane_strain")
 

@@ -111,7 +111,7 @@ class Biaxial(Drainage):
             raise ValueError(f"weak_zone_height = {self.weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import Discretisation
+        from femgran.assembly import discretisation_for
         from femgran.mesh import name_box_boundaries, rectangle
 
         p0, W, ea, imp, n = float(self.p0_kPa), float(self.width_m), float(self.axial_strain), \
@@ -125,7 +125,7 @@ class Biaxial(Drainage):
         left_nodes = np.flatnonzero(np.abs(m.p[0] - imp * W * np.exp(-(((m.p[1] - 0.5 * H) / (0.1 * H)) ** 2)))
                                     < 1e-12 * W)
         left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
-        d = Discretisation(m, self.order, self.volumetric)
+        d = discretisation_for(mat, m, self.order, self.volumetric)
         if self.weak_zone > 0:
             mat = _with_weak_zone(mat, float(self.weak_zone), m, d, W, float(self.weak_zone_height) * H)
         b = m.boundaries

@@ -72,7 +72,7 @@ class Cavity(Drainage):
             raise ValueError(f"order = {self.order!r}: allowed 1 or 2")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import Discretisation
+        from femgran.assembly import discretisation_for
         from femgran.mesh import graded, rectangle
 
         a, b, p0 = float(self.inner_radius_m), float(self.outer_radius_m), float(self.p0_kPa)
@@ -84,7 +84,7 @@ class Cavity(Drainage):
         named = polar.boundaries  # the (r, theta) rectangle's sides: the same facets after the mapping
         m = type(polar)(xy, polar.t).with_boundaries({"cavity": named["left"], "outer": named["right"],
                                                       "bottom": named["bottom"], "left": named["top"]})
-        d = Discretisation(m, self.order, "bbar" if self.order == 2 else "standard")
+        d = discretisation_for(mat, m, self.order, "bbar" if self.order == 2 else "standard")
         wall = d.facet_scalar_dofs(m.boundaries["cavity"])
         xw = d.dof_coordinates()[wall]
         angle = np.arctan2(xw[:, 1], xw[:, 0])

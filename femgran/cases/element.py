@@ -57,12 +57,12 @@ class Element(Drainage):
         check_steps(self.steps)
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import Discretisation
+        from femgran.assembly import discretisation_for
         from femgran.mesh import box
 
         p0, ea = float(self.p0_kPa), float(self.axial_strain)
         mesh = box(1.0, 1.0, 1.0, 1, 1, 1)
-        d = Discretisation(mesh, 1)
+        d = discretisation_for(mat, mesh, 1)
         b = mesh.boundaries
         bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
         bcs = [Dirichlet(d.vector_dofs(bot, [2]), 0.0, name="bottom"),

@@ -120,7 +120,7 @@ class Footing(Drainage):
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import Discretisation
+        from femgran.assembly import discretisation_for
         from femgran.mesh import load_mesh
 
         B, gamma, qs, K0 = float(self.width_m), float(self.unit_weight), float(self.surcharge_kPa), float(self.K0)
@@ -131,7 +131,7 @@ class Footing(Drainage):
             raise ValueError(f"mesh {self.mesh!r}: the footing is plane strain; a 2D mesh is required")
         if abs(m.p[1].max()) > 1e-9 * B or m.p[0].min() >= -B / 2 or m.p[0].max() <= B / 2:
             raise ValueError(f"mesh {self.mesh!r}: the surface must be y = 0 and the domain must contain |x| <= B/2")
-        d = Discretisation(m, self.order, self.volumetric if type(m).__name__ == "MeshQuad1" else "standard")
+        d = discretisation_for(mat, m, self.order, self.volumetric if type(m).__name__ == "MeshQuad1" else "standard")
         b = m.boundaries
         top_facets = b["top"]
         fx = m.p[0, m.facets[:, top_facets]].mean(axis=0)

@@ -101,7 +101,7 @@ class Triaxial(Drainage):
                                  f"{HEIGHT / (2 * max(n, 1))} m")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import Discretisation
+        from femgran.assembly import discretisation_for
         from femgran.mesh import box, load_mesh
 
         p0, ea, n = float(self.p0_kPa), float(self.axial_strain), int(self.resolution)
@@ -122,7 +122,7 @@ class Triaxial(Drainage):
             if m.dim() != 3 or not (np.allclose(lo, 0, atol=1e-6) and np.allclose(hi, [WIDTH, WIDTH, HEIGHT], atol=1e-6)):
                 raise ValueError(f"mesh {self.mesh!r}: must be 3D and fill [0, {WIDTH}] x [0, {WIDTH}] x [0, {HEIGHT}] m; "
                                  f"got bounds {lo} .. {hi}")
-        d = Discretisation(m, self.order, self.volumetric if type(m).__name__ == "MeshHex1" else "standard")
+        d = discretisation_for(mat, m, self.order, self.volumetric if type(m).__name__ == "MeshHex1" else "standard")
         soil = mat
         if self.platens == "frictional":
             mat = _with_interface_layers(mat, d, float(self.friction), ti)

@@ -1,0 +1,158 @@
+"""Implicit-gradient regularisation: the displacement and a nodal nonlocal field, solved as one Newton system.
+
+A softening law without a length localises into one row of elements, so its post-peak response follows the
+mesh. The implicit-gradient enhancement (Peerlings, de Borst, Brekelmans & de Vree 1996; for plasticity
+Engelen, Geers & Baaijens 2003) adds a scalar field ebar, continuous over the mesh, that solves
+
+    ebar - l^2 lap(ebar) = e      in the body,      grad(ebar) . n = 0   on its boundary,
+
+with e the law's local measure of softening at the points (e.g. the equivalent plastic strain) and l the
+material's length; the law softens with ebar (see :class:`material.GradientVonMises`), so the softening
+spreads over a width set by l instead of by the element size.
+
+:class:`GradientDiscretisation` is a :class:`femgran.assembly.Discretisation` whose unknown vector is
+[u (the displacement DOFs, numbered as before); ebar (linear Lagrange nodal values)]. The ebar rows are the
+weak form of the equation above scaled by a modulus s [kPa] (so that they are forces, and one tolerance
+measures both fields):
+
+    r_ebar = s [ (M + l^2 D) ebar - int phi e ],      M = int phi phi,   D = int grad(phi) . grad(phi),
+
+and the Newton matrix of the coupled problem is, with S = d sigma / d ebar, E = d e / d eps, c = d e / d ebar
+from the material's :class:`material.base.CoupledTangent`,
+
+    [ K_uu                    int B^T S phi     ]
+    [ -s int phi E B          s (M + l^2 D - int phi c phi) ]
+
+the exact derivative of the coupled residual (Newton keeps its quadratic convergence; tested against
+finite differences). The ebar field has no Dirichlet condition. The solver (:mod:`femgran.solver`) is the
+same as for the displacement alone: it passes :meth:`point_inputs` (the increment of ebar at the points)
+to the material and the material's tangent back to :meth:`internal_force` and :meth:`stiffness`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+import skfem
+from skfem.helpers import dot, grad
+
+from femgran.assembly import Discretisation
+from material.base import CoupledTangent
+
+__all__ = ["GradientDiscretisation", "NONLOCAL_ELEMENTS"]
+
+#: The linear Lagrange element of ebar on each mesh type.
+NONLOCAL_ELEMENTS = {"MeshHex1": "ElementHex1", "MeshTet1": "ElementTetP1", "MeshQuad1": "ElementQuad1",
+                     "MeshTri1": "ElementTriP1"}
+
+
+class GradientDiscretisation(Discretisation):
+    """Displacement (order 1 or 2) and a linear nodal nonlocal field ebar on the same mesh and quadrature.
+
+    Parameters
+    ----------
+    mesh, order, volumetric : as :class:`femgran.assembly.Discretisation`
+    length : float
+        The internal length l [m], > 0 (the material's ``nonlocal_length``).
+    scale : float
+        The modulus s [kPa] > 0 the ebar equation is multiplied by (e.g. the material's Young's modulus).
+
+    Attributes
+    ----------
+    n_displacement_dofs : int
+        The displacement DOFs come first, ``ndofs = n_displacement_dofs + n_nonlocal_dofs``.
+    nonlocal_basis : skfem.CellBasis
+        The scalar basis of ebar (its DOFs are the mesh vertices).
+    """
+
+    def __init__(self, mesh, order: int = 2, volumetric: str = "standard", *, length: float, scale: float):
+        super().__init__(mesh, order, volumetric)
+        for name, v in (("length", length), ("scale", scale)):
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} = {v!r}: must be > 0 (finite)")
+        self.length, self.scale = float(length), float(scale)
+        element = getattr(skfem, NONLOCAL_ELEMENTS[type(mesh).__name__])()
+        self.nonlocal_basis = nb = skfem.Basis(mesh, element, intorder=self.intorder)
+        if not np.array_equal(nb.X, self.basis.X):
+            raise RuntimeError("the ebar basis does not share the displacement's quadrature points")
+        self.nbe = nb.Nbfun
+        self.n_nonlocal_dofs = nb.N
+        self.ndofs = self.n_displacement_dofs + nb.N
+        self.phi = np.ascontiguousarray(np.transpose(np.stack([np.asarray(nb.basis[a][0]) for a in range(self.nbe)]),
+                                                     (1, 2, 0)))  # (nel, nq, nbe)
+        self.nonlocal_edofs = np.ascontiguousarray(nb.element_dofs.T + self.n_displacement_dofs)  # (nel, nbe)
+
+        @skfem.BilinearForm
+        def helmholtz(e, v, w):
+            return e * v + self.length**2 * dot(grad(e), grad(v))
+
+        L = helmholtz.assemble(nb).tocoo()
+        n0 = self.n_displacement_dofs
+        self._helmholtz = sp.csr_matrix((self.scale * L.data, (L.row + n0, L.col + n0)), shape=(self.ndofs,) * 2)
+        self._pattern = None
+
+    # ------------------------------------------------------------------ the nonlocal field
+    def nonlocal_values(self, u: np.ndarray) -> np.ndarray:
+        """ebar (or its increment) at the points, (N,), from the full unknown vector ``u``."""
+        ue = np.asarray(u)[self.nonlocal_edofs]  # (nel, nbe)
+        return np.einsum("ea,eqa->eq", ue, self.phi).ravel()
+
+    def nonlocal_field(self, u: np.ndarray) -> np.ndarray:
+        """The nodal values of ebar at the mesh vertices, (n_vertices,)."""
+        return np.asarray(u)[self.n_displacement_dofs:][: self.mesh.p.shape[1]]
+
+    def point_inputs(self, du: np.ndarray) -> dict:
+        """The material's extra input for the increment ``du``: ``{"d_nonlocal": (N,)}``."""
+        return {"d_nonlocal": self.nonlocal_values(du)}
+
+    # ------------------------------------------------------------------ residual and Newton matrix
+    def _weighted_force(self, tensor):
+        """f_(e,q,a,i) contributions sum_j T_ij dN_a,j + c tr(T) g_a,i (the transposed strain operator),
+        (nel, nq, nbf, dim), of a point tensor field T (N, 3, 3) (no quadrature weight)."""
+        d = self.dim
+        T = np.asarray(tensor)[:, :d, :d].reshape(self.nelems, self.nqp, d, d)
+        f = np.einsum("eqij,eqaj->eqai", T, self.dN, optimize=True)
+        if self.g is not None:
+            f = f + self.c * np.trace(T, axis1=2, axis2=3)[:, :, None, None] * self.g
+        return f
+
+    def internal_force(self, stress, tangent=None, u=None) -> np.ndarray:
+        """The coupled residual without the external load: the displacement rows f_int(sigma) and the ebar
+        rows s[(M + l^2 D) ebar - int phi e] from the full unknown ``u`` and the local measure in
+        ``tangent`` (a :class:`material.base.CoupledTangent`). Without them (the reactions, which only the
+        displacement rows carry) the ebar rows are zero."""
+        f = super().internal_force(stress)
+        if tangent is None or u is None:
+            return f
+        if not isinstance(tangent, CoupledTangent):
+            raise TypeError("a GradientDiscretisation needs a gradient-enhanced material (update(..., d_nonlocal=) "
+                            f"returning a CoupledTangent); got a tangent of type {type(tangent).__name__}")
+        local = np.asarray(tangent.local).reshape(self.nelems, self.nqp)
+        fe = np.einsum("eq,eqa,eq->ea", local, self.phi, self.dx, optimize=True)
+        f -= self.scale * np.bincount(self.nonlocal_edofs.ravel(), weights=fe.ravel(), minlength=self.ndofs)
+        return f + self._helmholtz @ np.asarray(u)
+
+    def stiffness(self, tangent) -> sp.csr_matrix:
+        """The Newton matrix of the coupled residual (module docstring) from the material's
+        :class:`material.base.CoupledTangent`."""
+        if not isinstance(tangent, CoupledTangent):
+            raise TypeError("a GradientDiscretisation needs a gradient-enhanced material (update(..., d_nonlocal=) "
+                            f"returning a CoupledTangent); got a tangent of type {type(tangent).__name__}")
+        K = super().stiffness(tangent.dstress_dstrain)
+        dx, phi = self.dx, self.phi
+        k_ue = np.einsum("eqai,eqb,eq->eaib", self._weighted_force(tangent.dstress_dnonlocal), phi, dx, optimize=True)
+        k_eu = -self.scale * np.einsum("eqb,eqai,eq->ebai", phi, self._weighted_force(tangent.dlocal_dstrain), dx,
+                                       optimize=True)
+        c = np.asarray(tangent.dlocal_dnonlocal).reshape(self.nelems, self.nqp)
+        k_ee = -self.scale * np.einsum("eqa,eq,eqb,eq->eab", phi, c, phi, dx, optimize=True)
+        nel, nu_e, ne = self.nelems, self.edofs.shape[1], self.nbe
+        rows = np.concatenate([np.repeat(self.edofs, ne, axis=1).ravel(),
+                               np.repeat(self.nonlocal_edofs, nu_e, axis=1).ravel(),
+                               np.repeat(self.nonlocal_edofs, ne, axis=1).ravel()])
+        cols = np.concatenate([np.tile(self.nonlocal_edofs, (1, nu_e)).ravel(),
+                               np.tile(self.edofs, (1, ne)).ravel(),
+                               np.tile(self.nonlocal_edofs, (1, ne)).ravel()])
+        data = np.concatenate([k_ue.reshape(nel, -1).ravel(), k_eu.reshape(nel, -1).ravel(), k_ee.ravel()])
+        coupling = sp.csr_matrix((data, (rows, cols)), shape=(self.ndofs, self.ndofs))
+        return (K + coupling + self._helmholtz).tocsr()
