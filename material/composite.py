@@ -15,13 +15,13 @@ import copy
 
 import numpy as np
 
-from material.base import STATUS_OK, as_stress_batch, check_batch
+from material.base import STATUS_OK, CoupledTangent, as_stress_batch, check_batch
 
 __all__ = ["Composite"]
 
 _SHARED = ("strain", "status", "step_ratio")
 _MERGED = ("plastic_strain", "mobilised_ratio", "eq_plastic_strain", "kappa", "loading", "near_apex", "iterations",
-           "continuation")
+           "continuation", "nonlocal")
 
 
 class Composite:
@@ -45,10 +45,28 @@ class Composite:
         self.index = [np.flatnonzero(a == k) for k in range(len(self.laws))]
         self.axes = getattr(self.laws[0], "axes", None)
         self.n_points = a.size
+        lengths = {getattr(law, "nonlocal_length", None) for law in self.laws}
+        if len(lengths) > 1:
+            raise ValueError(f"laws: nonlocal lengths {sorted(lengths, key=str)} differ; a Composite of gradient-"
+                             "enhanced laws needs one length (and no local law among them)")
+        self._nonlocal_length = lengths.pop()
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{law!r} on {idx.size} points" for law, idx in zip(self.laws, self.index))
         return f"Composite({parts})"
+
+    @property
+    def nonlocal_length(self) -> float:
+        """The laws' common nonlocal length l [m] (gradient-enhanced laws only; ``AttributeError`` otherwise)."""
+        if self._nonlocal_length is None:
+            raise AttributeError("nonlocal_length: the laws of this Composite are local")
+        return self._nonlocal_length
+
+    @property
+    def E(self) -> float:
+        """Young's modulus of the first law [kPa] (the scale of a coupled discretisation's nonlocal rows)."""
+        law = self.laws[0]
+        return float(law.E if hasattr(law, "E") else law.params.E)
 
     @property
     def replay_dir(self):
@@ -97,21 +115,41 @@ class Composite:
                     state[key][idx] = state[f"{k}:{key}"][idx]
         return state
 
-    def update(self, d_strain, stress, state):
+    def update(self, d_strain, stress, state, d_nonlocal=None):
+        """Each law on its points; ``d_nonlocal`` (gradient-enhanced laws, :mod:`material.base`) is split
+        the same way and the :class:`material.base.CoupledTangent` is merged field by field."""
         de, s = check_batch(d_strain, stress)
         n = self._n(de.shape[0])
         new_stress = np.empty_like(s)
-        tangent = np.empty((n, 3, 3, 3, 3))
+        tangent = None
         new = {"strain": state["strain"] + de, "status": np.full(n, STATUS_OK, np.int8), "step_ratio": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
             prefix = f"{k}:"
             sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
-            s_k, st_k, D_k = law.update(de[idx], s[idx], sub)
+            extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[idx]}
+            s_k, st_k, D_k = law.update(de[idx], s[idx], sub, **extra)
             new_stress[idx] = s_k
-            tangent[idx] = D_k
+            if tangent is None:
+                tangent = _empty_like_tangent(D_k, n)
+            _assign_tangent(tangent, idx, D_k)
             for key, arr in st_k.items():
                 full = np.array(state[prefix + key], copy=True) if prefix + key in state else \
                     np.zeros((n,) + np.shape(arr)[1:], dtype=np.asarray(arr).dtype)
                 full[idx] = arr
                 new[prefix + key] = full
         return new_stress, self._merge(new), tangent
+
+
+def _empty_like_tangent(D, n: int):
+    """An uninitialised tangent of n points of the kind of ``D`` (an array or a CoupledTangent)."""
+    if isinstance(D, CoupledTangent):
+        return CoupledTangent(*(np.empty((n,) + np.shape(f)[1:]) for f in D))
+    return np.empty((n, 3, 3, 3, 3))
+
+
+def _assign_tangent(tangent, idx, D) -> None:
+    if isinstance(tangent, CoupledTangent):
+        for full, part in zip(tangent, D):
+            full[idx] = part
+    else:
+        tangent[idx] = D

@@ -249,6 +249,9 @@ def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
 
 
 def _regularisation(mat) -> str:
+    length = getattr(mat, "nonlocal_length", None)
+    if length is not None:
+        return f"implicit gradient: length l = {length:g} m"
     p = getattr(mat, "params", None)
     if p is None and hasattr(mat, "laws"):
         p = getattr(mat.laws[0], "params", None)
