@@ -9,7 +9,8 @@ What may be given (``spec``):
 * a material object (anything with ``initial_state`` and ``update``), used as it is;
 * a mapping, the ``[material]`` table of a case file: ``law`` (``"cpa"``, the default, ``"von_mises"``,
   ``"drucker_prager"``, ``"linear_elastic"``) and that law's keys (:data:`LAWS`), e.g.
-  ``{"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0}}``.
+  ``{"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0}}``; a ``von_mises`` law with
+  ``length_m`` (and optionally ``over_nonlocal``) is the gradient-enhanced :class:`material.GradientVonMises`.
 
 The one rule for the deposition angle: a CPA law built here gets the material axes of ``alpha_deg``
 (default 0); a material object keeps its own axes, and an ``alpha_deg`` given with it must agree with
@@ -35,7 +36,7 @@ __all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS"]
 #: Keys of each law in a mapping spec (the ``[material]`` table of a case file).
 LAWS = {
     "cpa": ("preset", "parameters", "rule", "set", "stabilisation", "regularise"),
-    "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa"),
+    "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa", "length_m", "over_nonlocal"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "linear_elastic": ("E_kPa", "nu"),
 }
@@ -101,6 +102,8 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
                              plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"),
                              regularise=spec.get("regularise"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
+    if law == "von_mises" and ("length_m" in spec or "over_nonlocal" in spec):
+        cls = mlib.GradientVonMises  # softening regularised by an implicit gradient of length length_m
     try:
         return cls(**spec)
     except TypeError as exc:
