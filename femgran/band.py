@@ -35,6 +35,7 @@ non-negative intensity at each (e.g. the deviatoric strain increment after the p
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,7 +121,7 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
 
     ``element_size`` [m]: the field's resolution (strip width of the search; half of it for the profile).
     ``exclude`` = (x, y, r): leave out the points within r of (x, y) (an imperfection's own crush)."""
-    from scipy.optimize import curve_fit
+    from scipy.optimize import OptimizeWarning, curve_fit
 
     x = np.asarray(points, dtype=float)[:, :2]
     w = np.asarray(intensity, dtype=float)
@@ -164,9 +165,11 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
     across = float(np.ptp(d))
     window = slice(lo, hi + 1)
     try:
-        (bg, slope, amp, off, s), _ = curve_fit(
-            _gaussian, centres[window], means[window], p0=guess, maxfev=4000,
-            bounds=([0.0, -np.inf, 0.0, d.min(), 0.1 * element_size], [np.inf, np.inf, np.inf, d.max(), across]))
+        with warnings.catch_warnings():  # the parameters' covariance is not used: no warning when it is singular
+            warnings.simplefilter("ignore", OptimizeWarning)
+            (bg, slope, amp, off, s), _ = curve_fit(
+                _gaussian, centres[window], means[window], p0=guess, maxfev=4000,
+                bounds=([0.0, -np.inf, 0.0, d.min(), 0.1 * element_size], [np.inf, np.inf, np.inf, d.max(), across]))
     except (RuntimeError, ValueError):  # no peak to fit: a flat profile (or too few strips in the window)
         bg, slope, amp, off, s = background0, 0.0, 0.0, centres[k], across
     fwhm = 2.0 * np.sqrt(2.0 * np.log(2.0)) * s
