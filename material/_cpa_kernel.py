@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from material._cpa_local import _ratios, make_workspace, point_update
+from material._cpa_local import _ratios, make_workspace, plane_data, point_update
 from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
 
 
@@ -34,8 +34,9 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_out, 
     block = (N + nchunk - 1) // max(nchunk, 1)
     for c in prange(nchunk):
         ws = make_workspace(M)
+        pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
-            st, its, hv, lam, dl, best = point_update(law, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
+            st, its, hv, lam, dl, best = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
                                                       sig_out[p], kap_out[p], D_out[p], loading[p], ws)
             status[p] = st
             iterations[p] = its

@@ -61,14 +61,18 @@ from numba import njit
 
 from material._cpa_plane import (
     compaction_weight,
+    fallback_shear,
     hardening,
     induced_slope,
     induced_tensor,
     plane_directions,
+    plane_measures,
     plane_stress,
     plane_strengths,
     ratio_barrier,
+    shear_pair,
     slip_of_ratio,
+    sym_parts,
 )
 
 # status codes (material.base)
@@ -109,13 +113,32 @@ Point = namedtuple("Point", [
     "r_scale",               # strain scale of the residual
 ])
 
-#: Per-plane columns of the workspace ``plane`` array (values at the current iterate).
-_P_RATIO, _P_ST, _P_T, _P_SLIP, _P_CB, _P_KP, _P_ETA, _P_ALPHA = range(8)
+#: Per-plane constants of the law in plane-major (structure-of-arrays) layout, made with each thread's
+#: workspace by :func:`plane_data`, so that the sums over planes of :func:`evaluate` run on contiguous rows.
+PlaneData = namedtuple("PlaneData", [
+    "normal",    # (3, M) normals
+    "nn",        # (6, M) Mandel(n n)
+    "fallback",  # (3, M) the shear direction of a plane that carries no shear (_cpa_plane.fallback_shear)
+    "wt",        # (M,) w_a / t
+])
 
-#: Scratch arrays of one thread (M planes), made by :func:`make_workspace`.
+#: Rows of the workspace ``plane`` array (per-plane values at the current iterate). The first group
+#: depends on the stress only, the second on the plane law.
+(_P_ST, _P_RATIO, _P_INV_ST, _P_INV_T, _P_S_T, _P_DIL, _P_DWC,
+ _P_SLIP, _P_CB, _P_KP, _P_ETA, _P_ALPHA) = range(12)
+_NP = 12
+
+#: Rows of the workspace ``coef`` array: per-plane coefficients of the flow in R and in the Newton system.
+_C_SS, _C_NS, _C_SN, _C_NN, _C_RR, _C_R, _C_RHS = range(7)
+
+#: Scratch arrays of one thread (M planes), made by :func:`make_workspace`. Per-plane vectors are stored
+#: plane-major, (6, M), so that the sums over planes run on contiguous rows.
 Work = namedtuple("Work", [
-    "plane", "trial_plane",   # (M, 8) per-plane values (columns _P_*) at the iterate / at a line-search trial
-    "mvec", "bvec",           # (M, 6) flow vector m_a and b_a = d etah_a / d sigma
+    "plane", "trial_plane",   # (_NP, M) per-plane values (rows _P_*) at the iterate / at a line-search trial
+    "mvec", "bvec",           # (6, M) flow vector m_a and b_a = d etah_a / d sigma
+    "sn", "rn",               # (6, M) Mandel(sym(s (x) n)), Mandel(sym(r (x) n)) of the shear pair (s, r)
+    "coef",                   # (7, M) coefficients (rows _C_*)
+    "uvz",                    # (3, M) scratch of the Jacobian's sums
     "dk", "dk_try", "dk_step", "dk_done",  # (M,) slip increments: iterate, trial, Newton step, last solution
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
@@ -132,11 +155,30 @@ _V_R, _V_SIG, _V_SIG_TRY, _V_SIG_DONE, _V_LAM, _V_EPS, _V_DE, _V_ELL, _V_S0, _V_
 @njit(cache=True, error_model="numpy")
 def make_workspace(M):
     """Scratch arrays of one thread for :func:`point_update` (M planes)."""
-    return Work(np.empty((M, 8)), np.empty((M, 8)), np.empty((M, 6)), np.empty((M, 6)), np.empty(M),
-                np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M), np.empty(M),
+    return Work(np.empty((_NP, M)), np.empty((_NP, M)), np.empty((6, M)), np.empty((6, M)), np.empty((6, M)),
+                np.empty((6, M)), np.empty((7, M)), np.empty((3, M)), np.empty(M), np.empty(M), np.empty(M),
+                np.empty(M), np.empty(M), np.empty(M), np.empty(M),
                 np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.empty((7, 7)), np.empty(7),
                 np.empty(7), np.empty(7, dtype=np.int64), np.empty((12, 6)), np.empty((2, 6, 6)),
                 np.empty((M, 2 * M + 2)), np.empty(M, dtype=np.int64))
+
+
+@njit(cache=True, error_model="numpy")
+def plane_data(law):
+    """The per-plane constants of ``law`` in plane-major layout (:data:`PlaneData`)."""
+    M = law.normals.shape[0]
+    normal = np.empty((3, M))
+    nn = np.empty((6, M))
+    fallback = np.empty((3, M))
+    wt = np.empty(M)
+    for a in range(M):
+        n0, n1, n2 = law.normals[a, 0], law.normals[a, 1], law.normals[a, 2]
+        normal[0, a], normal[1, a], normal[2, a] = n0, n1, n2
+        fallback[0, a], fallback[1, a], fallback[2, a] = fallback_shear(n0, n1, n2)
+        for i in range(6):
+            nn[i, a] = law.nn6[a, i]
+        wt[a] = law.weights[a] * law.inv_t
+    return PlaneData(normal, nn, fallback, wt)
 
 
 @njit(cache=True, error_model="numpy")
@@ -208,17 +250,27 @@ def _fb(u, v, loading):
     return u + v - r, (1.0 - u / r, 1.0 - v / r)
 
 
-@njit(cache=True, error_model="numpy")
-def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
+#: Floating-point freedoms of :func:`evaluate`: fused multiply-add and reassociated sums, which lets the
+#: sums over planes vectorise (results change at round-off). No "nnan"/"ninf": the admissibility tests rely on
+#: comparisons with NaN and inf.
+_FAST = {"contract", "reassoc", "nsz", "arcp"}
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FAST)
+def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
     """Residuals (and the condensed 7 x 7 Newton system) at the iterate (sig, dk[strong], dl).
 
-    Fills ``dk`` of the weak planes (their closed-form slip), ``plane`` (per-plane values, columns
-    _P_*), ``ws.mvec``/``ws.bvec`` (flow vector m_a and b_a = d etah_a / d sigma of every plane with a
-    slip or a loading derivative), the strain residual ``ws.vecs[_V_R]``, and with ``want_jac`` the
-    condensed Jacobian ``ws.J`` (7, 7) and right-hand side ``ws.rhs`` (7,) of the Newton step. Returns
+    Fills ``dk`` of the weak planes (their closed-form slip), ``plane`` (per-plane values, rows _P_*),
+    ``ws.mvec``/``ws.bvec`` (flow vector m_a and b_a = d etah_a / d sigma of every plane), the strain
+    residual ``ws.vecs[_V_R]``, and with ``want_jac`` the condensed Jacobian ``ws.J`` (7, 7) and
+    right-hand side ``ws.rhs`` (7,) of the Newton step. ``pd`` is :func:`plane_data` of ``law``. Returns
     (admissible, merit, max |R|, max |Phi_a|, |Phi_0|); an iterate is not admissible where a plane's
     shifted normal stress is not positive, a weak plane is at or past its barrier (without
     stabilisation), or a strong plane's kappa <= -A/2.
+
+    Three passes over the planes: the stress measures and directions (they depend on the stress only),
+    the plane law (slip, Fischer-Burmeister) with the coefficients of the plane's terms, and the sums of
+    the terms into R and the Newton system over contiguous rows (these vectorise).
     """
     M = law.normals.shape[0]
     comp = law.comp
@@ -230,36 +282,56 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
         for j in range(6):
             acc += comp[i, j] * (sig[j] - pt.sig_n[j])
         R[i] = acc + (dl / 3.0 if i < 3 else 0.0)
-    if want_jac:
-        for i in range(7):
-            rhs[i] = 0.0
-            for j in range(7):
-                J[i, j] = comp[i, j] if (i < 6 and j < 6) else 0.0
-        for i in range(3):
-            J[i, 6] = 1.0 / 3.0
+    nx, ny, nz = pd.normal[0], pd.normal[1], pd.normal[2]
+    fx, fy, fz = pd.fallback[0], pd.fallback[1], pd.fallback[2]
+    nn, sn, rn, mv, bv = pd.nn, ws.sn, ws.rn, ws.mvec, ws.bvec
+    p_c = law.compaction_stress
+    eta_c = law.eta_c_ratio
+    # 1. the planes' stress measures, shear pair (s, r), flow m (2.7) and b = d etah / d sigma
+    for a in range(M):
+        n0, n1, n2 = nx[a], ny[a], nz[a]
+        sigma_t, tau, T, ts0, ts1, ts2 = plane_measures(sig, n0, n1, n2, pt.shift[a], b_r)
+        inv_st = 1.0 / sigma_t
+        inv_T = 1.0 / T
+        ratio = T * inv_st  # mobilised ratio
+        s_t = tau * inv_T
+        wc, dwc = compaction_weight(sigma_t, p_c)
+        dil = ratio - eta_c * pt.eta_f[a] * wc  # d psi / d sigma_N (2.17): < 0 compaction, > 0 dilation
+        plane[_P_ST, a] = sigma_t
+        plane[_P_RATIO, a] = ratio
+        plane[_P_INV_ST, a] = inv_st
+        plane[_P_INV_T, a] = inv_T
+        plane[_P_S_T, a] = s_t
+        plane[_P_DIL, a] = dil
+        plane[_P_DWC, a] = dwc
+        s0, s1, s2, r0, r1, r2 = shear_pair(n0, n1, n2, ts0, ts1, ts2, tau, fx[a], fy[a], fz[a])
+        sn[0, a], sn[1, a], sn[2, a], sn[3, a], sn[4, a], sn[5, a] = sym_parts(s0, s1, s2, n0, n1, n2)
+        rn[0, a], rn[1, a], rn[2, a], rn[3, a], rn[4, a], rn[5, a] = sym_parts(r0, r1, r2, n0, n1, n2)
+        for i in range(6):
+            s_i = s_t * sn[i, a]
+            mv[i, a] = s_i + dil * nn[i, a]
+            bv[i, a] = (s_i + ratio * nn[i, a]) * inv_st
+    # 2. the plane law: admissibility, slip, the slip's linearisation d dkappa = alpha + cb b . d sigma,
+    # and the coefficients of the plane's terms (rows _C_*)
+    cf = ws.coef
     phi2 = 0.0
     phimax = 0.0
     for a in range(M):
-        ef = pt.eta_f[a]
-        kn = pt.kap_n[a]
-        sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], b_r)
+        sigma_t = plane[_P_ST, a]
         if not sigma_t > 0.0:
             return False, np.inf, np.inf, np.inf, np.inf
-        inv_st = 1.0 / sigma_t
-        ratio = T * inv_st  # mobilised ratio
-        wt = law.weights[a] * law.inv_t
-        nn = law.nn6[a]
+        ratio = plane[_P_RATIO, a]
+        ef = pt.eta_f[a]
+        kn = pt.kap_n[a]
+        h = pt.floor[a]  # the step stabilisation's floor: g = etah - eta(kappa) - h dkappa
         cb = 0.0
         alpha = 0.0
         kp = 0.0
-        eta = 0.0
         if pt.strong[a]:
             k = kn + dk[a]
             if k <= -0.5 * A:
                 return False, np.inf, np.inf, np.inf, np.inf
             eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
-            # with the step stabilisation's floor h: g = etah - eta(kappa) - h dkappa
-            h = pt.floor[a]
             phi, (pu, pv) = _fb(dk[a] / A, eta + h * dk[a] - ratio, pt.select[a])
             deta += h
             phi2 += phi * phi
@@ -268,10 +340,9 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
             den = pu / A + pv * deta
             if abs(den) < 1e-300:
                 den = 1e-300
-            alpha = -phi / den  # d dkappa = alpha + cb b . d sigma
+            alpha = -phi / den
             cb = pv / den
         else:
-            h = pt.floor[a]
             if h == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
             slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, h * A)  # (2.16) inverted
@@ -281,53 +352,59 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
                 slip = 0.0
             dk[a] = slip
             cb = kp
-        plane[a, _P_RATIO] = ratio
-        plane[a, _P_ST] = sigma_t
-        plane[a, _P_T] = T
-        plane[a, _P_SLIP] = slip
-        plane[a, _P_CB] = cb
-        plane[a, _P_KP] = kp
-        plane[a, _P_ETA] = eta
-        plane[a, _P_ALPHA] = alpha
-        if slip == 0.0 and cb == 0.0:
-            continue  # an elastic plane: no flow, no terms
-        sn6 = ws.mvec[a]  # the plane's own rows as scratch: sn6 becomes m, rn6 becomes b
-        rn6 = ws.bvec[a]
-        plane_directions(law.normals[a], ts0, ts1, ts2, tau, sn6, rn6)
-        inv_T = 1.0 / T
-        s_t = tau * inv_T
-        wc, dwc = compaction_weight(sigma_t, law.compaction_stress)
-        dil = ratio - law.eta_c_ratio * ef * wc  # d psi / d sigma_N (2.17): < 0 compaction, > 0 dilation
-        if want_jac:
-            # J += wt [slip d m / d sigma + cb m (x) b], all in the span of sn6, rn6, nn6 with
-            # m = s_t sn6 + dil nn6 (2.7), b = d etah / d sigma = (s_t sn6 + etah nn6) / sigma~,
-            # d m / d sigma = ((b_r / T)^2 sn6 (x) sn6 + rn6 (x) rn6) / T (the slip direction turning)
-            #                 + nn6 (x) (b + eta_c w' nn6)
-            f_s = cb * s_t  # coefficient of sn6 in (slip nn6 + cb m)
-            f_n = slip + cb * dil  # of nn6
-            a_ss = wt * (slip * b_r * b_r * inv_T * inv_T * inv_T + f_s * s_t * inv_st)
-            a_ns = wt * f_n * s_t * inv_st
-            a_sn = wt * f_s * ratio * inv_st
-            a_nn = wt * (f_n * ratio * inv_st + slip * law.eta_c_ratio * ef * dwc)
-            a_rr = wt * slip * inv_T
-            ra = wt * alpha
-            for i in range(6):
-                si = sn6[i]
-                ni = nn[i]
-                u = a_ss * si + a_ns * ni  # (.) (x) sn6
-                v = a_sn * si + a_nn * ni  # (.) (x) nn6
-                z = a_rr * rn6[i]          # (.) (x) rn6
-                rhs[i] -= ra * (s_t * si + dil * ni)
-                for j in range(6):
-                    J[i, j] += u * sn6[j] + v * nn[j] + z * rn6[j]
-        # the plane's flow m and b (kept over the scratch rows for the Newton step and the tangent)
-        ws_ = wt * slip
+        plane[_P_SLIP, a] = slip
+        plane[_P_CB, a] = cb
+        plane[_P_KP, a] = kp
+        plane[_P_ETA, a] = eta
+        plane[_P_ALPHA, a] = alpha
+        # the plane's terms in R (2.9) and the Newton system, in the span of sn, rn, nn:
+        # J += wt [slip d m / d sigma + cb m (x) b], b = (s_t sn + etah nn) / sigma~,
+        # d m / d sigma = ((b_r / T)^2 sn (x) sn + rn (x) rn) / T (the slip direction turning)
+        #                 + nn (x) (b + eta_c w' nn)
+        wt = pd.wt[a] if (slip != 0.0 or cb != 0.0) else 0.0  # an elastic plane: no flow, no terms
+        inv_st = plane[_P_INV_ST, a]
+        inv_T = plane[_P_INV_T, a]
+        s_t = plane[_P_S_T, a]
+        f_s = cb * s_t  # coefficient of sn in (slip nn + cb m)
+        f_n = slip + cb * plane[_P_DIL, a]  # of nn
+        cf[_C_SS, a] = wt * (slip * b_r * b_r * inv_T * inv_T * inv_T + f_s * s_t * inv_st)
+        cf[_C_NS, a] = wt * f_n * s_t * inv_st
+        cf[_C_SN, a] = wt * f_s * ratio * inv_st
+        cf[_C_NN, a] = wt * (f_n * ratio * inv_st + slip * eta_c * ef * plane[_P_DWC, a])
+        cf[_C_RR, a] = wt * slip * inv_T
+        cf[_C_R, a] = wt * slip
+        cf[_C_RHS, a] = wt * alpha
+    # 3. the sums of the planes' terms
+    c_r, c_rhs = cf[_C_R], cf[_C_RHS]
+    for i in range(6):
+        m_i = mv[i]
+        acc = 0.0
+        acc_h = 0.0
+        for a in range(M):
+            acc += c_r[a] * m_i[a]
+            acc_h += c_rhs[a] * m_i[a]
+        R[i] += acc
+        rhs[i] = -acc_h
+    if want_jac:
+        c_ss, c_ns, c_sn, c_nn, c_rr = cf[_C_SS], cf[_C_NS], cf[_C_SN], cf[_C_NN], cf[_C_RR]
+        u, v, z = ws.uvz[0], ws.uvz[1], ws.uvz[2]
+        for i in range(7):
+            for j in range(7):
+                J[i, j] = comp[i, j] if (i < 6 and j < 6) else 0.0
+        for i in range(3):
+            J[i, 6] = 1.0 / 3.0
         for i in range(6):
-            s_i = s_t * sn6[i]
-            m_i = s_i + dil * nn[i]
-            R[i] += ws_ * m_i  # (2.9)
-            rn6[i] = (s_i + ratio * nn[i]) * inv_st  # b
-            sn6[i] = m_i                             # m
+            sn_i, nn_i, rn_i = sn[i], nn[i], rn[i]
+            for a in range(M):
+                u[a] = c_ss[a] * sn_i[a] + c_ns[a] * nn_i[a]  # (.) (x) sn
+                v[a] = c_sn[a] * sn_i[a] + c_nn[a] * nn_i[a]  # (.) (x) nn
+                z[a] = c_rr[a] * rn_i[a]                      # (.) (x) rn
+            for j in range(6):
+                sn_j, nn_j, rn_j = sn[j], nn[j], rn[j]
+                acc = 0.0
+                for a in range(M):
+                    acc += u[a] * sn_j[a] + v[a] * nn_j[a] + z[a] * rn_j[a]
+                J[i, j] += acc
     # mean-stress cut-off
     p = (sig[0] + sig[1] + sig[2]) / 3.0
     phi0, (pu0, pv0) = _fb(dl, -p / law.bulk, True)
@@ -348,7 +425,7 @@ def evaluate(law, pt, sig, dk, dl, want_jac, plane, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def _newton(law, opt, pt, sig, dk, dl_in, ws):
+def _newton(law, pd, opt, pt, sig, dk, dl_in, ws):
     """Semismooth Newton with a backtracking line search on the merit function, from (sig, dk, dl_in).
 
     Returns (converged, iterations, dl). On convergence ws.J holds the LU factors of the condensed
@@ -366,7 +443,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
         cmax = max(cmax, abs(law.comp[i, i]))
     floor = 1e-14 * floor * cmax  # round-off of S (sigma - sigma_n)
     dl = dl_in
-    ok, merit, rmax, phimax, phi0 = evaluate(law, pt, sig, dk, dl, True, plane, ws)
+    ok, merit, rmax, phimax, phi0 = evaluate(law, pd, pt, sig, dk, dl, True, plane, ws)
     if not ok:
         return False, 0, dl
     for it in range(opt.maxit + 1):
@@ -381,8 +458,8 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
             if strong[a]:
                 acc = 0.0
                 for j in range(6):
-                    acc += ws.bvec[a, j] * step[j]
-                dk_step[a] = plane[a, _P_ALPHA] + plane[a, _P_CB] * acc
+                    acc += ws.bvec[j, a] * step[j]
+                dk_step[a] = plane[_P_ALPHA, a] + plane[_P_CB, a] * acc
         alpha = 1.0
         accepted = False
         for _ls in range(40):
@@ -391,7 +468,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
             for a in range(M):
                 dk_try[a] = dk[a] + alpha * dk_step[a] if strong[a] else 0.0
             dl_try = dl + alpha * step[6]
-            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pt, sig_try, dk_try, dl_try, True, trial_plane, ws)
+            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pd, pt, sig_try, dk_try, dl_try, True, trial_plane, ws)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
@@ -402,8 +479,7 @@ def _newton(law, opt, pt, sig, dk, dl_in, ws):
             sig[i] = sig_try[i]
         for a in range(M):
             dk[a] = dk_try[a]
-            for c in range(8):
-                plane[a, c] = trial_plane[a, c]
+        plane[:] = trial_plane
         dl = dl_try
         merit, rmax, phimax, phi0 = merit2, rmax2, phimax2, phi02
     return False, opt.maxit, dl
@@ -496,9 +572,10 @@ def _rate_active_set(law, pt, ws):
     n = 0
     sig = pt.sig_n
     hard = ws.dk_try  # eta' of each plane on its curve (scratch)
+    sn6, rn6 = ws.vecs[_V_S1], ws.vecs[_V_S2]
     for a in range(M):
         sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], law.rounding)
-        plane_directions(law.normals[a], ts0, ts1, ts2, tau, ws.mvec[a], ws.bvec[a])
+        plane_directions(law.normals[a], ts0, ts1, ts2, tau, sn6, rn6)
         ratio = T / sigma_t
         eta, deta = hardening(pt.kap_n[a], pt.eta_f[a], law.zeta, law.A, law.kstar, pt.soft, law.residual)
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
@@ -510,9 +587,9 @@ def _rate_active_set(law, pt, ws):
             wc, _ = compaction_weight(sigma_t, law.compaction_stress)
             dil = ratio - law.eta_c_ratio * pt.eta_f[a] * wc
             for i in range(6):
-                s_i = s_t * ws.mvec[a, i]
-                ws.bvec[a, i] = (s_i + ratio * law.nn6[a, i]) / sigma_t
-                ws.mvec[a, i] = s_i + dil * law.nn6[a, i]
+                s_i = s_t * sn6[i]
+                ws.bvec[i, a] = (s_i + ratio * law.nn6[a, i]) / sigma_t
+                ws.mvec[i, a] = s_i + dil * law.nn6[a, i]
         pt.select[a] = False
     if n == 0:
         return True
@@ -529,14 +606,14 @@ def _rate_active_set(law, pt, ws):
         for i in range(6):
             acc = 0.0
             for j in range(6):
-                acc += law.stiff[i, j] * ws.mvec[bpl, j]
+                acc += law.stiff[i, j] * ws.mvec[j, bpl]
             cm[i] = acc
         wt = law.weights[bpl] * law.inv_t
         for ia in range(n):
             apl = on[ia]
             acc = 0.0
             for i in range(6):
-                acc += ws.bvec[apl, i] * cm[i]
+                acc += ws.bvec[i, apl] * cm[i]
             h = wt * acc + (hard[apl] if ia == jb else 0.0)
             tab[ia, n + jb] = -h  # the tableau holds -M (M = H)
     for ia in range(n):
@@ -546,7 +623,7 @@ def _rate_active_set(law, pt, ws):
         tab[ia, 2 * n] = -1.0
         acc = 0.0
         for i in range(6):
-            acc += ws.bvec[apl, i] * cde[i]
+            acc += ws.bvec[i, apl] * cde[i]
         tab[ia, 2 * n + 1] = -acc  # q of the LCP is -q
         # (columns beyond 2n + 1 unused)
     # compact the columns: the function expects (n, 2n + 2)
@@ -563,9 +640,10 @@ def _rate_active_set(law, pt, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_out, loading, ws):
+def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_out, loading, ws):
     """Integrate one Gauss point (Mandel vectors; see the module docstring for the algorithm).
 
+    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`.
     Outputs: sig_out (6,), kap_out (M,), D_out (6, 6) d sigma / d d_eps (if ``opt.tangent``), loading (M,)
     bool (planes whose slip grows). Returns (status, Newton iterations, continuation halvings, the
     fraction of the increment reached (1 unless failed), opening dlambda of the cut-off, largest
@@ -642,7 +720,7 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
             sig[i] = sig_done[i]
         for a in range(M):
             dk[a] = dk_done[a] if strong[a] else 0.0
-        converged, its, dl = _newton(law, opt, pt, sig, dk, dl_done, ws)
+        converged, its, dl = _newton(law, pd, opt, pt, sig, dk, dl_done, ws)
         total_its += its
         if converged:
             lam_done = lam
@@ -673,10 +751,10 @@ def point_update(law, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_ou
     # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
     for a in range(M):
-        slip = plane[a, _P_SLIP]
+        slip = plane[_P_SLIP, a]
         kap_out[a] = kap_n[a] + max(slip, 0.0)
         loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
-        best = max(best, plane[a, _P_RATIO] / eta_f[a])
+        best = max(best, plane[_P_RATIO, a] / eta_f[a])
     for i in range(6):
         sig_out[i] = sig[i]
     if opt.tangent:
@@ -703,25 +781,24 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
         induced_slope(eps_end, law.beta, law.alpha_hat, law.beta_hat, L, ws.vecs[_V_S0:_V_S2 + 1])
         ell = ws.vecs[_V_ELL]
         for a in range(M):
-            slip = ws.plane[a, _P_SLIP]
-            cb = ws.plane[a, _P_CB]
+            slip = ws.plane[_P_SLIP, a]
+            cb = ws.plane[_P_CB, a]
             if slip == 0.0 and cb == 0.0:
                 continue
             ef = ws.eta_f[a]
-            ratio = ws.plane[a, _P_RATIO]
+            ratio = ws.plane[_P_RATIO, a]
             dst = -law.cohesion[a] / (ef * ef)  # d sigma~ / d eta_f (the cohesion's shift c / eta_f)
-            dr = -ratio / ws.plane[a, _P_ST] * dst  # d etah / d eta_f
+            dr = -ratio / ws.plane[_P_ST, a] * dst  # d etah / d eta_f
             nn = law.nn6[a]
-            m = ws.mvec[a]
             wt = law.weights[a] * law.inv_t
             if strong[a]:
-                dg = dr - ws.plane[a, _P_ETA] / ef  # d g / d eta_f (eta is proportional to eta_f)
+                dg = dr - ws.plane[_P_ETA, a] / ef  # d g / d eta_f (eta is proportional to eta_f)
                 cm = wt * cb * dg
             else:
                 # d slip / d eta_f at fixed stress: (d etah / d eta_f - eta / eta_f) / (eta' + h)
-                cm = wt * ws.plane[a, _P_KP] * (dr - ws.plane[a, _P_ETA] / ef)
+                cm = wt * ws.plane[_P_KP, a] * (dr - ws.plane[_P_ETA, a] / ef)
             # d m / d eta_f = (d etah / d eta_f - eta_c_ratio (w + eta_f w' d sigma~ / d eta_f)) nn6
-            wc, dwc = compaction_weight(ws.plane[a, _P_ST], law.compaction_stress)
+            wc, dwc = compaction_weight(ws.plane[_P_ST, a], law.compaction_stress)
             cn = wt * slip * (dr - law.eta_c_ratio * (wc + ef * dwc * dst))
             for j in range(6):
                 acc = 0.0
@@ -729,7 +806,7 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
                     acc += nn[i] * L[i, j]
                 ell[j] = ws.deta_f[a] * acc
             for i in range(6):
-                ti = cm * m[i] + cn * nn[i]
+                ti = cm * ws.mvec[i, a] + cn * nn[i]
                 for j in range(6):
                     T[i, j] += ti * ell[j]
     col = ws.step

@@ -212,14 +212,16 @@ def traction(sig, n0, n1, n2):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def sym_parts(a0, a1, a2, n0, n1, n2):
+    """The six Mandel components of sym(a (x) n)."""
+    return (a0 * n0, a1 * n1, a2 * n2, (a1 * n2 + a2 * n1) * ISQ2, (a0 * n2 + a2 * n0) * ISQ2,
+            (a0 * n1 + a1 * n0) * ISQ2)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def sym_mandel(out, a0, a1, a2, n0, n1, n2):
     """out = Mandel(sym(a (x) n))."""
-    out[0] = a0 * n0
-    out[1] = a1 * n1
-    out[2] = a2 * n2
-    out[3] = (a1 * n2 + a2 * n1) * ISQ2
-    out[4] = (a0 * n2 + a2 * n0) * ISQ2
-    out[5] = (a0 * n1 + a1 * n0) * ISQ2
+    out[0], out[1], out[2], out[3], out[4], out[5] = sym_parts(a0, a1, a2, n0, n1, n2)
 
 
 #: b / c_a: the rounding of a plane's tip relative to the apex stress (a stress-free plane is mobilised
@@ -228,10 +230,9 @@ APEX_ROUNDING = 0.1
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def plane_stress(sig, normal, shift, rounding):
-    """The plane's stress measures at the Mandel stress ``sig``: (sigma~, tau, T, t_s), with ``shift``
-    = c / eta_f + c_a, ``rounding`` = b and t_s = (ts0, ts1, ts2) the shear traction."""
-    n0, n1, n2 = normal[0], normal[1], normal[2]
+def plane_measures(sig, n0, n1, n2, shift, rounding):
+    """The stress measures of the plane with normal n at the Mandel stress ``sig``: (sigma~, tau, T, t_s),
+    with ``shift`` = c / eta_f + c_a, ``rounding`` = b and t_s = (ts0, ts1, ts2) the shear traction."""
     t0, t1, t2 = traction(sig, n0, n1, n2)
     tn = t0 * n0 + t1 * n1 + t2 * n2
     ts0, ts1, ts2 = t0 - tn * n0, t1 - tn * n1, t2 - tn * n2
@@ -240,22 +241,43 @@ def plane_stress(sig, normal, shift, rounding):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def plane_directions(normal, ts0, ts1, ts2, tau, sn6, rn6):
-    """sn6 = Mandel(sym(s (x) n)) and rn6 = Mandel(sym(r (x) n)) for an orthonormal pair (s, r) of shear
-    directions of the plane, s along the shear traction t_s (d tau / d sigma = sn6); where the plane
-    carries no shear, a fixed pair (nothing that follows depends on which)."""
-    n0, n1, n2 = normal[0], normal[1], normal[2]
+def plane_stress(sig, normal, shift, rounding):
+    """:func:`plane_measures` for the normal given as an array (3,)."""
+    return plane_measures(sig, normal[0], normal[1], normal[2], shift, rounding)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def fallback_shear(n0, n1, n2):
+    """A unit shear direction of the plane with normal n, used where it carries no shear: the one
+    orthogonal to the smallest normal component (nothing that follows depends on which)."""
+    if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
+        s0, s1, s2 = 0.0, -n2, n1
+    elif abs(n1) <= abs(n2):
+        s0, s1, s2 = n2, 0.0, -n0
+    else:
+        s0, s1, s2 = -n1, n0, 0.0
+    ns = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    return s0 / ns, s1 / ns, s2 / ns
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def shear_pair(n0, n1, n2, ts0, ts1, ts2, tau, f0, f1, f2):
+    """An orthonormal pair (s, r = n x s) of shear directions of the plane: s along the shear traction
+    t_s, or the fallback direction f (:func:`fallback_shear`, precomputed per plane) where tau = 0."""
     if tau > 0.0:
         inv = 1.0 / tau
         s0, s1, s2 = ts0 * inv, ts1 * inv, ts2 * inv
-    else:  # any shear direction: the one of the smallest normal component
-        if abs(n0) <= abs(n1) and abs(n0) <= abs(n2):
-            s0, s1, s2 = 0.0, -n2, n1
-        elif abs(n1) <= abs(n2):
-            s0, s1, s2 = n2, 0.0, -n0
-        else:
-            s0, s1, s2 = -n1, n0, 0.0
-        ns = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-        s0, s1, s2 = s0 / ns, s1 / ns, s2 / ns
+    else:
+        s0, s1, s2 = f0, f1, f2
+    return s0, s1, s2, n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def plane_directions(normal, ts0, ts1, ts2, tau, sn6, rn6):
+    """sn6 = Mandel(sym(s (x) n)) and rn6 = Mandel(sym(r (x) n)) for the pair (s, r) of
+    :func:`shear_pair` (d tau / d sigma = sn6)."""
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    f0, f1, f2 = fallback_shear(n0, n1, n2)
+    s0, s1, s2, r0, r1, r2 = shear_pair(n0, n1, n2, ts0, ts1, ts2, tau, f0, f1, f2)
     sym_mandel(sn6, s0, s1, s2, n0, n1, n2)
-    sym_mandel(rn6, n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0, n0, n1, n2)
+    sym_mandel(rn6, r0, r1, r2, n0, n1, n2)
