@@ -37,7 +37,8 @@ from femgran.solver import History
 from material.sweep import Run, sweep
 from material.table import Table
 
-VARIANTS = ("regularised", "unregularised")
+VARIANTS = ("regularised", "unregularised", "gradient")
+STYLES = {"crack band": "-", "unregularised": "--"}  # line style of each variant in the plot (gradient: ":")
 POST_PEAK_STRAINS = (0.035, 0.045, 0.06)  # axial strains at which the post-peak q of the meshes is compared
 
 
@@ -47,7 +48,9 @@ def main(argv=None) -> dict:
                     help="mesh 4, regularised only, to the peak (3 %% strain), 10 steps, no stabilisation")
     ap.add_argument("--out", default="out/fe_04_biaxial")
     ap.add_argument("--resolutions", type=int, nargs="+", default=[8, 12, 16], help="elements across the width")
-    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=["regularised", "unregularised"],
+                    help="regularised: the crack band; gradient: the implicit gradient of length --length")
+    ap.add_argument("--length", type=float, default=0.006, help="the gradient's length l [m] (variant gradient)")
     ap.add_argument("--softening-slip", type=float, default=0.03, help="slip scale of the softening [m]")
     ap.add_argument("--youngs-modulus", type=float, default=60000.0, help="E [kPa]")
     ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
@@ -71,8 +74,7 @@ def main(argv=None) -> dict:
                    title="fe_04 meshes", on_record=_say)
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
-    return {(int(r["values"]["resolution"]), r["values"]["variant"] == "regularised"): r["summary"]
-            for r in result.records}
+    return {(int(r["values"]["resolution"]), r["values"]["variant"]): r["summary"] for r in result.records}
 
 
 def study(args) -> list[Run]:
@@ -82,18 +84,30 @@ def study(args) -> list[Run]:
                         "residual_ratio": 0.65}}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
               "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": 0.01, "platens": args.platens}
+    if args.length <= 0:
+        raise ValueError(f"--length = {args.length!r}: must be > 0 (m)")
     runs = []
     for n in sorted(args.resolutions, reverse=True):
         for variant in args.variants:
-            runs.append(Run(_tag(n, variant), "femgran.sweep:case_target",
-                            {"case": "biaxial", "fields": {**fields, "resolution": n},
-                             "material": {**material, "regularise": variant == "regularised"}},
+            law = {**material, "nonlocal_length": args.length} if variant == "gradient" else \
+                {**material, "regularise": variant == "regularised"}
+            runs.append(Run(_tag(n, variant, args.length), "femgran.sweep:case_target",
+                            {"case": "biaxial", "fields": {**fields, "resolution": n}, "material": law},
                             {"resolution": n, "variant": variant}))
     return runs
 
 
-def _tag(n: int, variant: str) -> str:
-    return f"resolution_{n}" + ("" if variant == "regularised" else "_unregularised")
+def _tag(n: int, variant: str, length: float) -> str:
+    suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm"}
+    return f"resolution_{n}" + suffix[variant]
+
+
+def _variant(folder: Path) -> str:
+    """The variant (and for the gradient its length) a run folder holds, from its name."""
+    name = folder.name
+    if "_gradient_" in name:
+        return "gradient " + name.split("_gradient_")[1]
+    return "unregularised" if name.endswith("_unregularised") else "crack band"
 
 
 def _say(rec) -> None:
@@ -129,7 +143,7 @@ def collect(out: Path) -> list[dict]:
         summary = json.loads((folder / "summary.json").read_text())
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n = int(params["resolution"])
-        rows.append({"resolution": n, "regularised": not folder.name.endswith("_unregularised"),
+        rows.append({"resolution": n, "variant": _variant(folder),
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
                      **summary,
@@ -137,18 +151,21 @@ def collect(out: Path) -> list[dict]:
     table = Table(title="shear-band study: biaxial runs on several meshes")
     for r in rows:
         ref = r["reference_angles_deg"]
-        row = {"resolution": r["resolution"], "regularised": int(r["regularised"]),
-               "element_size_mm": r["element_size_mm"], "peak_q_kPa": r["peak_q_kPa"]}
+        length = float(r["variant"].split()[1][:-2]) if r["variant"].startswith("gradient") else float("nan")
+        row = {"resolution": r["resolution"], "crack_band": int(r["variant"] == "crack band"),
+               "gradient_length_mm (NaN: none)": length, "element_size_mm": r["element_size_mm"],
+               "peak_q_kPa": r["peak_q_kPa"]}
         row.update({f"q_at_{e:g}_kPa": q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
         row.update({f"drop_at_{e:g}_kPa": r["peak_q_kPa"] - q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
         row.update(final_eps_a=r["history"]["eps_a"][-1], peak_phi_deg=r["peak_friction_deg"],
                    peak_psi_deg=r["peak_dilatancy_deg"], localised=int(r["localised"]), band_angle_deg=r["band_angle_deg"],
+                   band_thickness_mm=1e3 * r["band_thickness_m"],
                    coulomb_deg=ref["coulomb"], roscoe_deg=ref["roscoe"], arthur_deg=ref["arthur"],
                    completed=int(r["completed"]))
         table.append(row)
     table.write_csv(out / "meshes.csv")
-    for reg in (True, False):
-        sel = [r for r in rows if r["regularised"] == reg]
+    for variant in sorted({r["variant"] for r in rows}):
+        sel = [r for r in rows if r["variant"] == variant]
         parts = []
         for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
             got = [r for r in sel if np.isfinite(r["post_peak_q"][j])]
@@ -158,7 +175,7 @@ def collect(out: Path) -> list[dict]:
                 parts.append(f"at {e:g}: {np.ptp(q):.1f} kPa (of the drop from each mesh's peak: "
                              f"{np.ptp(drop):.1f} kPa) over meshes {[r['resolution'] for r in got]}")
         if parts:
-            print(f"{'regularised' if reg else 'unregularised'}: spread of q " + "; ".join(parts))
+            print(f"{variant}: spread of q " + "; ".join(parts))
     return rows
 
 
@@ -170,14 +187,14 @@ def _plot(rows, path):
 
     fig, (ax, ax_drop) = plt.subplots(1, 2, figsize=(10, 4))
     colours = dict(zip(sorted({r["resolution"] for r in rows}), ("C0", "C1", "C2", "C3", "C4", "C5")))
-    for r in sorted(rows, key=lambda r: (not r["regularised"], r["resolution"])):
-        style = dict(color=colours[r["resolution"]], ls="-" if r["regularised"] else "--",
-                     label=f"h = {r['element_size_mm']:.2f} mm" + ("" if r["regularised"] else ", unregularised"))
+    for r in sorted(rows, key=lambda r: (r["variant"], r["resolution"])):
+        style = dict(color=colours[r["resolution"]], ls=STYLES.get(r["variant"], ":"),
+                     label=f"h = {r['element_size_mm']:.2f} mm, {r['variant']}")
         e, q = r["history"]["eps_a"], r["history"]["q_kPa"]
         ax.plot(e, q, **style)
         ax_drop.plot(e, q - r["peak_q_kPa"], **style)
     ax.set_ylabel("q = s1 - s3 [kPa]")
-    ax.set_title("biaxial, CPA with softening: solid = crack band over t", fontsize=9)
+    ax.set_title("biaxial, CPA with softening: solid = crack band, dashed = none, dotted = gradient", fontsize=9)
     start = 0.8 * min(r["history"]["eps_a"][int(np.nanargmax(r["history"]["q_kPa"]))] for r in rows)
     low = min(np.nanmin(np.where(r["history"]["eps_a"] >= start, r["history"]["q_kPa"] - r["peak_q_kPa"], 0.0))
               for r in rows)

@@ -72,6 +72,7 @@ from material._cpa_plane import (
     ratio_barrier,
     shear_pair,
     slip_of_ratio,
+    softening_branch,
     sym_parts,
 )
 
@@ -111,6 +112,9 @@ Point = namedtuple("Point", [
     "select",                # (M,) bool: at its kink a plane takes the loading (True) or elastic branch
     "floor",                 # (M,) the step stabilisation's hardening floor of each plane [1/m] (0: none)
     "r_scale",               # strain scale of the residual
+    "post",                  # (M,) bool: past its softening peak at the start, coupled by the gradient
+    "coupled",               # any post: the gradient's unknown S and its equation are in the system
+    "c0", "m_over",          # the gradient's shift m t (ebar - e_n) [m] and its m (implicit gradient)
 ])
 
 #: Per-plane constants of the law in plane-major (structure-of-arrays) layout, made with each thread's
@@ -125,8 +129,11 @@ PlaneData = namedtuple("PlaneData", [
 #: Rows of the workspace ``plane`` array (per-plane values at the current iterate). The first group
 #: depends on the stress only, the second on the plane law.
 (_P_ST, _P_RATIO, _P_INV_ST, _P_INV_T, _P_S_T, _P_DIL, _P_DWC,
- _P_SLIP, _P_CB, _P_KP, _P_ETA, _P_ALPHA) = range(12)
-_NP = 12
+ _P_SLIP, _P_CB, _P_KP, _P_ETA, _P_ALPHA, _P_GAMMA) = range(13)
+_NP = 13
+#: Size of the condensed Newton system: stress (6) and the cut-off's opening, and with the implicit
+#: gradient the sum S of the slip increments of the planes past their peak.
+_NSYS = 8
 
 #: Rows of the workspace ``coef`` array: per-plane coefficients of the flow in R and in the Newton system.
 _C_SS, _C_NS, _C_SN, _C_NN, _C_RR, _C_R, _C_RHS = range(7)
@@ -143,7 +150,9 @@ Work = namedtuple("Work", [
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
     "floor",                  # (M,) see Point
-    "J", "rhs", "step", "piv",  # condensed Newton system (7, 7), (7,), (7,), pivots
+    "post",                   # (M,) bool, see Point
+    "J", "rhs", "step", "piv",  # condensed Newton system (_NSYS, _NSYS), (_NSYS,), (_NSYS,), pivots (the
+                                # leading 7 x 7 without the gradient's unknown)
     "vecs",                   # (12, 6) small vectors (rows _V_*)
     "mats",                   # (2, 6, 6): d Lambda / d eps, induced correction T
     "tableau",                # (M, 2 M + 2) Lemke's tableau of the rate problem
@@ -158,8 +167,9 @@ def make_workspace(M):
     return Work(np.empty((_NP, M)), np.empty((_NP, M)), np.empty((6, M)), np.empty((6, M)), np.empty((6, M)),
                 np.empty((6, M)), np.empty((7, M)), np.empty((3, M)), np.empty(M), np.empty(M), np.empty(M),
                 np.empty(M), np.empty(M), np.empty(M), np.empty(M),
-                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.empty((7, 7)), np.empty(7),
-                np.empty(7), np.empty(7, dtype=np.int64), np.empty((12, 6)), np.empty((2, 6, 6)),
+                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.zeros(M, dtype=np.bool_),
+                np.empty((_NSYS, _NSYS)), np.empty(_NSYS), np.empty(_NSYS), np.empty(_NSYS, dtype=np.int64),
+                np.empty((12, 6)), np.empty((2, 6, 6)),
                 np.empty((M, 2 * M + 2)), np.empty(M, dtype=np.int64))
 
 
@@ -257,16 +267,21 @@ _FAST = {"contract", "reassoc", "nsz", "arcp"}
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST)
-def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
-    """Residuals (and the condensed 7 x 7 Newton system) at the iterate (sig, dk[strong], dl).
+def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
+    """Residuals (and the condensed Newton system) at the iterate (sig, dk[strong], dl, S).
 
     Fills ``dk`` of the weak planes (their closed-form slip), ``plane`` (per-plane values, rows _P_*),
     ``ws.mvec``/``ws.bvec`` (flow vector m_a and b_a = d etah_a / d sigma of every plane), the strain
-    residual ``ws.vecs[_V_R]``, and with ``want_jac`` the condensed Jacobian ``ws.J`` (7, 7) and
-    right-hand side ``ws.rhs`` (7,) of the Newton step. ``pd`` is :func:`plane_data` of ``law``. Returns
-    (admissible, merit, max |R|, max |Phi_a|, |Phi_0|); an iterate is not admissible where a plane's
-    shifted normal stress is not positive, a weak plane is at or past its barrier (without
-    stabilisation), or a strong plane's kappa <= -A/2.
+    residual ``ws.vecs[_V_R]``, and with ``want_jac`` the condensed Jacobian ``ws.J`` (7, 7; 8 x 8 when
+    ``pt.coupled``) and right-hand side ``ws.rhs`` of the Newton step. ``pd`` is :func:`plane_data` of
+    ``law``. Returns (admissible, merit, max |R|, max of |Phi_a| and of the gradient's |g_S| / A, |Phi_0|);
+    an iterate is not admissible where a plane's shifted normal stress is not positive, a weak plane is at
+    or past its barrier (without stabilisation), or a strong plane's kappa <= -A/2.
+
+    The implicit gradient (``pt.coupled``; ``docs/regularisation.md``, section 3): a plane past its peak
+    softens with kappa_hat = kappa_n + dkappa + c0 - m S, S = sum of the slip increments of those planes,
+    with the equation g_S = S - sum dkappa = 0. Its slip's linearisation gains gamma_a dS, and S is the
+    eighth unknown of the condensed system.
 
     Three passes over the planes: the stress measures and directions (they depend on the stress only),
     the plane law (slip, Fischer-Burmeister) with the coefficients of the plane's terms, and the sums of
@@ -316,6 +331,9 @@ def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
     cf = ws.coef
     phi2 = 0.0
     phimax = 0.0
+    post_slip = 0.0  # the gradient's sums over the planes past their peak: slips, alpha, gamma
+    post_alpha = 0.0
+    post_gamma = 0.0
     for a in range(M):
         sigma_t = plane[_P_ST, a]
         if not sigma_t > 0.0:
@@ -326,22 +344,31 @@ def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
         h = pt.floor[a]  # the step stabilisation's floor: g = etah - eta(kappa) - h dkappa
         cb = 0.0
         alpha = 0.0
+        gamma = 0.0
         kp = 0.0
         if pt.strong[a]:
             k = kn + dk[a]
             if k <= -0.5 * A:
                 return False, np.inf, np.inf, np.inf, np.inf
-            eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
+            coupled = pt.coupled and pt.post[a]
+            if coupled:  # the gradient's shift, on the (continued) softening branch
+                eta, deta = softening_branch(k + pt.c0 - pt.m_over * S, ef, law.kstar, pt.soft, law.residual)
+            else:
+                eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
             phi, (pu, pv) = _fb(dk[a] / A, eta + h * dk[a] - ratio, pt.select[a])
-            deta += h
             phi2 += phi * phi
             phimax = max(phimax, abs(phi))
             slip = dk[a]
-            den = pu / A + pv * deta
+            den = pu / A + pv * (deta + h)
             if abs(den) < 1e-300:
                 den = 1e-300
-            alpha = -phi / den
+            alpha = -phi / den  # d dkappa = alpha + cb b . d sigma + gamma d S
             cb = pv / den
+            if coupled:
+                gamma = pv * pt.m_over * deta / den
+                post_slip += slip
+                post_alpha += alpha
+                post_gamma += gamma
         else:
             if h == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
@@ -357,6 +384,7 @@ def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
         plane[_P_KP, a] = kp
         plane[_P_ETA, a] = eta
         plane[_P_ALPHA, a] = alpha
+        plane[_P_GAMMA, a] = gamma
         # the plane's terms in R (2.9) and the Newton system, in the span of sn, rn, nn:
         # J += wt [slip d m / d sigma + cb m (x) b], b = (s_t sn + etah nn) / sigma~,
         # d m / d sigma = ((b_r / T)^2 sn (x) sn + rn (x) rn) / T (the slip direction turning)
@@ -420,17 +448,41 @@ def evaluate(law, pd, pt, sig, dk, dl, want_jac, plane, ws):
         for i in range(6):
             rhs[i] -= R[i]
         rhs[6] = -phi0
+    if pt.coupled:
+        g_s = S - post_slip
+        phi2 += (g_s / A) ** 2
+        phimax = max(phimax, abs(g_s) / A)
+        if want_jac:  # the column of S in R, and the row of g_S: dS - sum (alpha + cb b . d sigma + gamma dS)
+            wg = ws.uvz[0]
+            gam = plane[_P_GAMMA]
+            for a in range(M):
+                wg[a] = pd.wt[a] * gam[a]
+            for i in range(6):
+                acc = 0.0
+                acc_b = 0.0
+                for a in range(M):
+                    acc += wg[a] * mv[i, a]
+                    if pt.post[a]:
+                        acc_b += plane[_P_CB, a] * bv[i, a]
+                J[i, 7] = acc
+                J[7, i] = -acc_b
+            J[6, 7] = 0.0
+            J[7, 6] = 0.0
+            J[7, 7] = 1.0 - post_gamma
+            rhs[7] = -g_s + post_alpha
     merit = 0.5 * (rn2 / (pt.r_scale * pt.r_scale) + phi2 + (phi0 / pt.r_scale) ** 2)
     return True, merit, rmax, phimax, abs(phi0)
 
 
 @njit(cache=True, error_model="numpy")
-def _newton(law, pd, opt, pt, sig, dk, dl_in, ws):
-    """Semismooth Newton with a backtracking line search on the merit function, from (sig, dk, dl_in).
+def _newton(law, pd, opt, pt, sig, dk, dl_in, S_in, ws):
+    """Semismooth Newton with a backtracking line search on the merit function, from (sig, dk, dl_in, S_in).
 
-    Returns (converged, iterations, dl). On convergence ws.J holds the LU factors of the condensed
+    Returns (converged, iterations, dl, S). On convergence ws.J holds the LU factors of the condensed
     Jacobian at the solution, and sig, dk, ws.plane, ws.mvec, ws.bvec the solution."""
-    plane, trial_plane, J, rhs, step, piv = ws.plane, ws.trial_plane, ws.J, ws.rhs, ws.step, ws.piv
+    n = _NSYS if pt.coupled else 7
+    plane, trial_plane, rhs = ws.plane, ws.trial_plane, ws.rhs
+    J, step, piv = ws.J[:n, :n], ws.step[:n], ws.piv[:n]
     dk_try, dk_step = ws.dk_try, ws.dk_step
     strong = pt.strong
     M = pt.kap_n.shape[0]
@@ -443,23 +495,25 @@ def _newton(law, pd, opt, pt, sig, dk, dl_in, ws):
         cmax = max(cmax, abs(law.comp[i, i]))
     floor = 1e-14 * floor * cmax  # round-off of S (sigma - sigma_n)
     dl = dl_in
-    ok, merit, rmax, phimax, phi0 = evaluate(law, pd, pt, sig, dk, dl, True, plane, ws)
+    S = S_in
+    ok, merit, rmax, phimax, phi0 = evaluate(law, pd, pt, sig, dk, dl, S, True, plane, ws)
     if not ok:
-        return False, 0, dl
+        return False, 0, dl, S
     for it in range(opt.maxit + 1):
         if rmax <= opt.tol * pt.r_scale + floor and phimax <= opt.tol and phi0 <= opt.tol * pt.r_scale + floor:
-            return _lu_factor(J, piv), it, dl
+            return _lu_factor(J, piv), it, dl, S
         if it == opt.maxit or not _lu_factor(J, piv):
-            return False, it, dl
-        for i in range(7):
+            return False, it, dl, S
+        for i in range(n):
             step[i] = rhs[i]
         _lu_solve(J, piv, step)
+        d_s = step[7] if pt.coupled else 0.0
         for a in range(M):
             if strong[a]:
                 acc = 0.0
                 for j in range(6):
                     acc += ws.bvec[j, a] * step[j]
-                dk_step[a] = plane[_P_ALPHA, a] + plane[_P_CB, a] * acc
+                dk_step[a] = plane[_P_ALPHA, a] + plane[_P_CB, a] * acc + plane[_P_GAMMA, a] * d_s
         alpha = 1.0
         accepted = False
         for _ls in range(40):
@@ -468,21 +522,24 @@ def _newton(law, pd, opt, pt, sig, dk, dl_in, ws):
             for a in range(M):
                 dk_try[a] = dk[a] + alpha * dk_step[a] if strong[a] else 0.0
             dl_try = dl + alpha * step[6]
-            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pd, pt, sig_try, dk_try, dl_try, True, trial_plane, ws)
+            s_try = S + alpha * d_s
+            ok2, merit2, rmax2, phimax2, phi02 = evaluate(law, pd, pt, sig_try, dk_try, dl_try, s_try, True,
+                                                          trial_plane, ws)
             if ok2 and merit2 <= (1.0 - 1e-4 * alpha) * merit:
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
-            return False, it, dl
+            return False, it, dl, S
         for i in range(6):
             sig[i] = sig_try[i]
         for a in range(M):
             dk[a] = dk_try[a]
         plane[:] = trial_plane
         dl = dl_try
+        S = s_try
         merit, rmax, phimax, phi0 = merit2, rmax2, phimax2, phi02
-    return False, opt.maxit, dl
+    return False, opt.maxit, dl, S
 
 
 @njit(cache=True, error_model="numpy")
@@ -494,17 +551,27 @@ def _ratios(law, sig, shift, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _is_elastic(law, trial, kap_n, soft, eta_f, shift):
+def _is_elastic(law, trial, kap_n, soft, eta_f, shift, post, c0):
     """The elastic trial is the solution: no mean tension, no plane above its reached level (stops at the
-    first plane that loads)."""
+    first plane that loads; a plane ``post`` past its peak under the implicit gradient has its level at the
+    shifted slip kappa_n + c0)."""
     if trial[0] + trial[1] + trial[2] > 0.0:
         return False
     for a in range(kap_n.shape[0]):
         sigma_t, tau, T, _, _, _ = plane_stress(trial, law.normals[a], shift[a], law.rounding)
-        if not (sigma_t > 0.0 and T <= sigma_t * hardening(kap_n[a], eta_f[a], law.zeta, law.A, law.kstar, soft,
-                                                              law.residual)[0]):
+        eta = _level(law, kap_n[a], eta_f[a], soft, post[a], c0)[0]
+        if not (sigma_t > 0.0 and T <= sigma_t * eta):
             return False
     return True
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _level(law, kappa_n, eta_f, soft, post, c0):
+    """The hardening level eta and its slope of a plane at the start of the step: (2.16) at kappa_n, or for a
+    plane past its peak under the implicit gradient the softening branch at kappa_n + c0."""
+    if post:
+        return softening_branch(kappa_n + c0, eta_f, law.kstar, soft, law.residual)
+    return hardening(kappa_n, eta_f, law.zeta, law.A, law.kstar, soft, law.residual)
 
 
 @njit(cache=True, error_model="numpy")
@@ -565,7 +632,9 @@ def _rate_active_set(law, pt, ws):
     The planes on their hardening curve at sigma_n load at rates x >= 0 with the rates of their
     overstress g_dot = q - H x <= 0 and x . g_dot = 0, q_a = b_a . C d_eps (the elastic rate of etah_a),
     H_ab = (w_b / t) b_a . C m_b + eta'_a delta_ab. Solved by Lemke's method; where it finds no solution
-    the choice stays the loading branch for all. Returns whether a solution was found.
+    the choice stays the loading branch for all. Returns whether a solution was found. (The implicit
+    gradient's coupling of the planes past their peak through S is left out: the choice only supplies the
+    starting branches.)
     """
     M = pt.kap_n.shape[0]
     on = np.empty(M, dtype=np.int64)
@@ -577,7 +646,7 @@ def _rate_active_set(law, pt, ws):
         sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], law.rounding)
         plane_directions(law.normals[a], ts0, ts1, ts2, tau, sn6, rn6)
         ratio = T / sigma_t
-        eta, deta = hardening(pt.kap_n[a], pt.eta_f[a], law.zeta, law.A, law.kstar, pt.soft, law.residual)
+        eta, deta = _level(law, pt.kap_n[a], pt.eta_f[a], pt.soft, pt.coupled and pt.post[a], pt.c0)
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
@@ -640,12 +709,16 @@ def _rate_active_set(law, pt, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, D_out, loading, ws):
+def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_out, kap_out, D_out, loading,
+                 grad_out, ws):
     """Integrate one Gauss point (Mandel vectors; see the module docstring for the algorithm).
 
-    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`.
+    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`. ``c0`` and ``m_over``:
+    the implicit gradient's shift m t (ebar - e_n) [m] and m (``m_over`` = 0: no gradient).
     Outputs: sig_out (6,), kap_out (M,), D_out (6, 6) d sigma / d d_eps (if ``opt.tangent``), loading (M,)
-    bool (planes whose slip grows). Returns (status, Newton iterations, continuation halvings, the
+    bool (planes whose slip grows), grad_out (14,): S, d S / d d_eps (6), d sigma / d c0 (6), d S / d c0
+    (S the sum of the slip increments of the planes past their peak; zeros without the gradient, the
+    derivatives only with ``opt.tangent``). Returns (status, Newton iterations, continuation halvings, the
     fraction of the increment reached (1 unless failed), opening dlambda of the cut-off, largest
     etah_a / eta_f,a at the end).
     """
@@ -658,17 +731,23 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
         eps_end[i] = eps_n[i] + de[i]
     induced_tensor(eps_end, law.beta, law.alpha_hat, law.beta_hat, lam6)  # (3.15)
     plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, eta_f, ws.deta_f)  # (2.4)
+    post = ws.post
+    coupled = False
     for a in range(M):
         shift[a] = law.cohesion[a] / eta_f[a] + law.apex_stress
         strong[a] = kap_n[a] > law.A or (soft > 0.0 and kap_n[a] >= law.kstar)
+        post[a] = m_over > 0.0 and soft > 0.0 and kap_n[a] >= law.kstar
+        coupled = coupled or post[a]
         ws.select[a] = True
+    for i in range(14):
+        grad_out[i] = 0.0
     sig = vecs[_V_SIG]
     for i in range(6):
         acc = sig_n[i]
         for j in range(6):
             acc += law.stiff[i, j] * de[j]
         sig[i] = acc
-    if _is_elastic(law, sig, kap_n, soft, eta_f, shift):
+    if _is_elastic(law, sig, kap_n, soft, eta_f, shift, post, c0):
         ratios = ws.dk_try  # scratch
         _ratios(law, sig, shift, ratios)
         best = 0.0
@@ -699,7 +778,8 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
             ws.floor[a] = opt.stabilisation * law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
         else:
             ws.floor[a] = 0.0
-    pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale)
+    pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
+               m_over)
     # follow the branch in the fraction lam of the increment, from the solution at lam = 0 (the start of
     # the step); Newton's first step from a solution is the tangent predictor of the next fraction
     sig_done = vecs[_V_SIG_DONE]
@@ -708,6 +788,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
     for a in range(M):
         dk_done[a] = 0.0
     dl_done = 0.0
+    s_done = 0.0
     lam_done = 0.0
     h = 1.0
     halvings = 0
@@ -720,7 +801,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
             sig[i] = sig_done[i]
         for a in range(M):
             dk[a] = dk_done[a] if strong[a] else 0.0
-        converged, its, dl = _newton(law, pd, opt, pt, sig, dk, dl_done, ws)
+        converged, its, dl, S = _newton(law, pd, opt, pt, sig, dk, dl_done, s_done, ws)
         total_its += its
         if converged:
             lam_done = lam
@@ -729,11 +810,12 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
             for a in range(M):
                 dk_done[a] = dk[a]
             dl_done = dl
+            s_done = S
             h = min(2.0 * h, 1.0)
         elif lam_done == 0.0 and not rate_solved:
             # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
-            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale),
-                             ws)
+            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale,
+                                        post, coupled, c0, m_over), ws)
             rate_solved = True
         else:
             h *= 0.5
@@ -757,23 +839,31 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, sig_out, kap_out, 
         best = max(best, plane[_P_RATIO, a] / eta_f[a])
     for i in range(6):
         sig_out[i] = sig[i]
+    grad_out[0] = s_done
     if opt.tangent:
-        _tangent(law, soft, eps_end, strong, ws, D_out)
+        _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out)
     return OK, total_its, halvings, 1.0, dl_done, best
 
 
 @njit(cache=True, error_model="numpy")
-def _tangent(law, soft, eps_end, strong, ws, D_out):
-    """Consistent tangent d sigma / d d_eps at the converged solution (ws.J holds its LU factors).
+def _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out):
+    """Consistent tangent d sigma / d d_eps at the converged solution (ws.J holds its LU factors), and with
+    the implicit gradient the derivatives of S in ``grad_out`` (see :func:`point_update`).
 
     Differentiating the equations at the solution: J7 [d sigma; d lambda] = [(I - T) d d_eps; 0], where
     J7 is the condensed Newton matrix and T = sum_a t_a (x) l_a collects the dependence of the plane laws
     on the end-of-step strain through eta_f,a (induced anisotropy, 3.14-3.15): l_a = d eta_f,a / d eps and
-    t_a = d R / d eta_f,a (with the strong planes' slips condensed).
+    t_a = d R / d eta_f,a (with the strong planes' slips condensed). With the gradient the system is
+    J8 [d sigma; d lambda; d S] = [(I - T) d d_eps; 0; -t_S . d d_eps] (t_S: the row of g_S = S - sum dkappa),
+    and the shift c0 enters through the planes past their peak, d dkappa_a / d c0 = delta_a = -gamma_a / m:
+    J8 [d sigma; d lambda; d S] / d c0 = [-sum wt delta_a m_a; 0; sum delta_a].
     """
     M = strong.shape[0]
+    n = _NSYS if pt.coupled else 7
     T = ws.mats[1]
+    t_s = ws.vecs[_V_COL]  # the row of g_S in T
     for i in range(6):
+        t_s[i] = 0.0
         for j in range(6):
             T[i, j] = 0.0
     if law.beta != 0.0:
@@ -791,6 +881,7 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
             dr = -ratio / ws.plane[_P_ST, a] * dst  # d etah / d eta_f
             nn = law.nn6[a]
             wt = law.weights[a] * law.inv_t
+            dg = 0.0
             if strong[a]:
                 dg = dr - ws.plane[_P_ETA, a] / ef  # d g / d eta_f (eta is proportional to eta_f)
                 cm = wt * cb * dg
@@ -809,11 +900,32 @@ def _tangent(law, soft, eps_end, strong, ws, D_out):
                 ti = cm * ws.mvec[i, a] + cn * nn[i]
                 for j in range(6):
                     T[i, j] += ti * ell[j]
-    col = ws.step
+            if pt.coupled and pt.post[a]:  # d g_S / d eta_f,a = - d dkappa_a / d eta_f,a
+                for j in range(6):
+                    t_s[j] -= cb * dg * ell[j]
+    J, piv, col = ws.J[:n, :n], ws.piv[:n], ws.step[:n]
     for j in range(6):
         for i in range(6):
             col[i] = (1.0 if i == j else 0.0) - T[i, j]
         col[6] = 0.0
-        _lu_solve(ws.J, ws.piv, col)
+        if pt.coupled:
+            col[7] = -t_s[j]
+        _lu_solve(J, piv, col)
         for i in range(6):
             D_out[i, j] = col[i]
+        if pt.coupled:
+            grad_out[1 + j] = col[7]
+    if pt.coupled:
+        for i in range(n):
+            col[i] = 0.0
+        for a in range(M):
+            if pt.post[a]:
+                delta = -ws.plane[_P_GAMMA, a] / pt.m_over
+                col[7] += delta
+                wd = law.weights[a] * law.inv_t * delta
+                for i in range(6):
+                    col[i] -= wd * ws.mvec[i, a]
+        _lu_solve(J, piv, col)
+        for i in range(6):
+            grad_out[7 + i] = col[i]
+        grad_out[13] = col[7]

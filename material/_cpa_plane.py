@@ -145,11 +145,28 @@ def hardening(kappa, eta_f, zeta, A, kstar, soft, residual):
     has a softening slip scale ``soft`` > 0, the decay eta_f (r + (1 - r) / (1 + (kappa - kappa*) / soft))
     to r = ``residual`` (continuous, with a kink at the peak eta = eta_f)."""
     if soft > 0.0 and kappa >= kstar:
-        x = 1.0 + (kappa - kstar) / soft
-        return eta_f * (residual + (1.0 - residual) / x), -eta_f * (1.0 - residual) / (soft * x * x)
+        return softening_branch(kappa, eta_f, kstar, soft, residual)
     zef = zeta * eta_f
     apk = A + kappa
     return zef * kappa / apk, zef * A / (apk * apk)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def softening_branch(kappa, eta_f, kstar, soft, residual):
+    """eta and d eta / d kappa on the softening branch: past the peak (kappa >= kappa*) the decay
+    eta_f (r + (1 - r) / x), x = 1 + (kappa - kappa*) / soft, of :func:`hardening`; below it the branch's
+    tangent at the peak, eta_f (1 + (1 - r) (kappa* - kappa) / soft) (continuous with its slope).
+
+    The implicit gradient (:mod:`material._cpa_local`) evaluates a plane past its peak at its slip shifted
+    by the nonlocal field, which can fall below kappa* where the plane's neighbours slip less: the plane is
+    then stronger than its peak, linearly, as the over-nonlocal von Mises law is (the decay itself continued
+    below the peak would have a pole at kappa* - soft; measured on a biaxial band: shifts of -1.07 soft
+    reached it)."""
+    if kappa >= kstar:
+        x = 1.0 + (kappa - kstar) / soft
+        return eta_f * (residual + (1.0 - residual) / x), -eta_f * (1.0 - residual) / (soft * x * x)
+    slope = -eta_f * (1.0 - residual) / soft
+    return eta_f + slope * (kappa - kstar), slope
 
 
 @njit(cache=True, inline="always", error_model="numpy")

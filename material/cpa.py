@@ -54,7 +54,7 @@ from material import _cpa_kernel as _k
 from material._cpa_local import Law, Options
 from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
-from material.base import STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.base import CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
 from material.elastic import mandel_elastic
 from material.parameters import CPAParameters, load_preset, parameters_from_dict
 from material.tensors import to_mandel
@@ -105,13 +105,21 @@ class CPAModel:
         Scale the post-peak softening by each point's element size (``softening_slip t / h``, the
         default; :meth:`initial_state`). False applies the law as if every element were one band
         thickness t wide, whatever its size: the unregularised, mesh-dependent reference.
+    nonlocal_length : float, optional
+        l [m] > 0: regularise the post-peak softening by an implicit gradient instead of the crack band
+        (``docs/regularisation.md``, section 3; the FE cases then solve for the nonlocal field ebar of the
+        post-peak slip strain, :mod:`femgran.gradient`). Needs a softening law (``softening_slip`` > 0).
+    over_nonlocal : float
+        m > 1 of the gradient: a plane past its peak softens with kappa + m t (ebar - e), e the point's
+        post-peak slip strain (default 2).
     """
 
     TANGENTS = ("tensor", "mandel")  # forms of the tangent :meth:`update` returns
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
                  maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float = 0.0,
-                 replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True):
+                 replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True,
+                 nonlocal_length: float | None = None, over_nonlocal: float = 2.0):
         from material.planes import integration_rule
 
         if isinstance(params, str):
@@ -126,6 +134,17 @@ class CPAModel:
             raise ValueError(f"tol = {tol!r}: allowed 0 < tol < 1e-3")
         if not (np.isfinite(float(stabilisation)) and 0.0 <= float(stabilisation) <= 1.0):
             raise ValueError(f"stabilisation = {stabilisation!r}: allowed 0 <= stabilisation <= 1")
+        if nonlocal_length is not None:
+            if not (np.isfinite(float(nonlocal_length)) and float(nonlocal_length) > 0.0):
+                raise ValueError(f"nonlocal_length = {nonlocal_length!r}: must be > 0 (m), or None for no gradient")
+            if params.softening_slip <= 0.0:
+                raise ValueError(f"nonlocal_length = {nonlocal_length!r}: regularises the post-peak softening, but "
+                                 f"softening_slip = {params.softening_slip!r}; allowed with softening_slip > 0 "
+                                 "(and zeta > 1)")
+        if not (np.isfinite(float(over_nonlocal)) and float(over_nonlocal) > 1.0):
+            raise ValueError(f"over_nonlocal = {over_nonlocal!r}: must be > 1 (with 1 the band keeps narrowing)")
+        self._nonlocal_length = None if nonlocal_length is None else float(nonlocal_length)
+        self.over_nonlocal = float(over_nonlocal)
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
@@ -157,7 +176,8 @@ class CPAModel:
         ``axes``, or any keyword of the constructor); this law is unchanged."""
         kw = dict(rule=self.rule, maxit=self.options.maxit, max_halvings=self.options.max_halvings,
                   tol=self.options.tol, stabilisation=self.options.stabilisation, replay_dir=self.replay_dir,
-                  threads=self.threads, regularise=self.regularise)
+                  threads=self.threads, regularise=self.regularise, nonlocal_length=self._nonlocal_length,
+                  over_nonlocal=self.over_nonlocal)
         kw.update(options)
         return CPAModel(self.params if params is None else params, axes=self.axes if axes is None else axes, **kw)
 
@@ -171,6 +191,18 @@ class CPAModel:
     @property
     def n_planes(self) -> int:
         return self.normals.shape[0]
+
+    @property
+    def nonlocal_length(self) -> float:
+        """The gradient's length l [m] (``AttributeError`` for the local law: the crack band or none)."""
+        if self._nonlocal_length is None:
+            raise AttributeError("nonlocal_length: this CPA law has no gradient regularisation")
+        return self._nonlocal_length
+
+    @property
+    def E(self) -> float:
+        """Young's modulus [kPa] (the scale of the nonlocal field's equation, :mod:`femgran.gradient`)."""
+        return float(self.params.E)
 
     def __repr__(self) -> str:
         return f"CPAModel({self.params.name!r}, rule={self.rule!r}, planes={self.n_planes})"
@@ -260,6 +292,7 @@ class CPAModel:
             "mobilised_ratio": np.zeros(n),
             "near_apex": np.abs(sig).max(axis=(1, 2)) <= 10.0 * self.params.apex_stress,
             "element_size": h,
+            **({} if self._nonlocal_length is None else {"nonlocal": np.zeros(n)}),
         }
 
     def _softening_scale(self, state: State, n: int) -> np.ndarray:
@@ -268,12 +301,12 @@ class CPAModel:
         if p.softening_slip == 0.0:
             return np.zeros(n)
         h = state.get("element_size")
-        if h is None or not self.regularise:
+        if h is None or not self.regularise or self._nonlocal_length is not None:
             return np.full(n, p.softening_slip)
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
     # ----------------------------------------------------------------------------- update
-    def update(self, d_strain, stress, state: State, *, tangent: bool | str = True):
+    def update(self, d_strain, stress, state: State, *, tangent: bool | str = True, d_nonlocal=None):
         """Integrate the law over a strain increment at N Gauss points.
 
         Parameters
@@ -285,6 +318,11 @@ class CPAModel:
             Compute the consistent tangent (default). Without it the third return value is None;
             ``"mandel"`` returns it as (N, 6, 6) Mandel matrices, the form the law computes (no
             conversion: the element drivers work in it, :data:`TANGENTS`).
+        d_nonlocal : None or (N,)
+            A law with a ``nonlocal_length``: the step's increment of the nonlocal field ebar at the points
+            (the FE solver passes it, :mod:`femgran.gradient`); the tangent is then a
+            :class:`material.base.CoupledTangent` and ``state["nonlocal"]`` the end-of-step ebar. Without
+            it the law is local (ebar = e, a homogeneous test) and ``state["nonlocal"]`` follows e.
 
         Returns
         -------
@@ -312,6 +350,23 @@ class CPAModel:
         de6 = _k.to_mandel(de)
         eps6 = _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float))
         kap_n = np.ascontiguousarray(state["kappa"], dtype=float)
+        p = self.params
+        gradient = self._nonlocal_length is not None
+        if d_nonlocal is not None and not gradient:
+            raise ValueError("d_nonlocal: this CPA law has no nonlocal_length (no gradient regularisation)")
+        c0, m_over = np.zeros(n), 0.0
+        if gradient:
+            check_state(state, n, ("nonlocal",))
+            e_n = self._post_peak_strain(kap_n, kap_n)
+            if d_nonlocal is not None:
+                dnl = np.asarray(d_nonlocal, dtype=float)
+                if dnl.shape != (n,) or not np.all(np.isfinite(dnl)):
+                    raise ValueError(f"d_nonlocal: expected a finite array of shape ({n},), got {dnl.shape}")
+                if tangent == "mandel":
+                    raise ValueError("tangent = 'mandel': the coupled tangent of d_nonlocal comes in tensor form")
+                ebar = np.asarray(state["nonlocal"], dtype=float) + dnl
+                m_over = self.over_nonlocal
+                c0 = m_over * p.t * (ebar - e_n)  # the shift of the slip of every plane past its peak
         sig_out = np.empty_like(sig6)
         kap_out = np.empty_like(kap_n)
         D = np.empty((n, 6, 6))
@@ -330,9 +385,10 @@ class CPAModel:
 
             prev_threads = numba.get_num_threads()
             numba.set_num_threads(int(self.threads))
+        grad_out = np.empty((n, 14))
         try:
-            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), sig_out, kap_out,
-                         D, loading, status, iterations, halvings, reached, opening, mobilised)
+            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), c0, m_over, sig_out,
+                         kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening, mobilised)
         finally:
             if prev_threads is not None:
                 import numba
@@ -362,12 +418,30 @@ class CPAModel:
         if "element_size" in state:
             new_state["element_size"] = state["element_size"]
         if failed.any():
-            self._record_failure(de, sig, state, np.flatnonzero(failed))
+            self._record_failure(de, sig, state, np.flatnonzero(failed), d_nonlocal)
         tan = (D if tangent == "mandel" else _k.tangent_from_mandel(D)) if tangent else None
-        return new_sig, new_state, tan
+        if not gradient:
+            return new_sig, new_state, tan
+        if d_nonlocal is None:  # the local law: the field follows the point's own post-peak slip strain
+            new_state["nonlocal"] = self._post_peak_strain(kap_out, kap_n)
+            return new_sig, new_state, tan
+        new_state["nonlocal"] = np.asarray(state["nonlocal"], dtype=float) + dnl
+        # grad_out: S (the sum of the slip increments of the planes past their peak), d S / d d_eps (Mandel),
+        # d sigma / d c0 (Mandel), d S / d c0; with c0 = m t (ebar - e_n) and e = e_n + S / t
+        scale = m_over * p.t  # d c0 / d ebar
+        return new_sig, new_state, CoupledTangent(
+            tan, _k.from_mandel(np.ascontiguousarray(grad_out[:, 7:13] * scale)), e_n + grad_out[:, 0] / p.t,
+            _k.from_mandel(np.ascontiguousarray(grad_out[:, 1:7] / p.t)), grad_out[:, 13] * m_over)
+
+    def _post_peak_strain(self, kappa, kappa_n) -> np.ndarray:
+        """e = sum of kappa_a - kappa* over the planes past their peak at the start of the step (``kappa_n``),
+        divided by t: the point's post-peak slip strain, the local measure of the gradient (N,)."""
+        kstar = self.params.kappa_instability
+        post = kappa_n >= kstar
+        return np.where(post, kappa - kstar, 0.0).sum(axis=1) / self.params.t
 
     # ----------------------------------------------------------------------------- replay
-    def _record_failure(self, de, sig, state, idx) -> None:
+    def _record_failure(self, de, sig, state, idx, d_nonlocal=None) -> None:
         import json
 
         record = {
@@ -377,8 +451,12 @@ class CPAModel:
             "params_json": np.array(json.dumps(self.params.to_dict())),
             "rule": np.array(self.rule),
             "axes": self.axes,
-            "options_json": np.array(json.dumps(self.options.__dict__)),
+            "options_json": np.array(json.dumps({**self.options.__dict__, "regularise": self.regularise,
+                                                 "nonlocal_length": self._nonlocal_length,
+                                                 "over_nonlocal": self.over_nonlocal})),
         }
+        if d_nonlocal is not None:
+            record["d_nonlocal"] = np.asarray(d_nonlocal, dtype=float)[idx]
         for key, arr in state.items():
             record[f"state__{key}"] = np.asarray(arr)[idx]
         self.last_failure = record
@@ -413,11 +491,13 @@ def replay(path, **model_options):
     with np.load(path, allow_pickle=False) as f:
         data = {k: f[k] for k in f.files}
     params = parameters_from_dict(json.loads(str(data["params_json"])), source=str(path))
-    options = {k: v for k, v in json.loads(str(data["options_json"])).items() if k in _Options.__dataclass_fields__}
+    known = set(_Options.__dataclass_fields__) | {"regularise", "nonlocal_length", "over_nonlocal"}
+    options = {k: v for k, v in json.loads(str(data["options_json"])).items() if k in known}
     options.update(model_options)
     model = CPAModel(params, rule=str(data["rule"]), axes=data["axes"], **options)
     state = {k[len("state__"):]: v for k, v in data.items() if k.startswith("state__")}
-    stress, new_state, tangent = model.update(data["d_strain"], data["stress"], state)
+    extra = {"d_nonlocal": data["d_nonlocal"]} if "d_nonlocal" in data and model._nonlocal_length is not None else {}
+    stress, new_state, tangent = model.update(data["d_strain"], data["stress"], state, **extra)
     return model, stress, new_state, tangent
 
 

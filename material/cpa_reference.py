@@ -88,6 +88,15 @@ class _Law:
             out = np.where(post, ef * (p.residual_ratio + (1 - p.residual_ratio) / np.where(post, x, 1.0)), out)
         return out
 
+    def softening(self, kappa, ef, soft):
+        """The softening branch of (2.16) past kappa*, continued below kappa* by its tangent at the peak (a
+        plane past its peak whose gradient-shifted slip falls below it)."""
+        p = self.p
+        r, ks = p.residual_ratio, p.kappa_instability
+        below = kappa.real < ks
+        x = 1 + np.where(below, 0.0, kappa - ks) / soft
+        return np.where(below, ef * (1 + (1 - r) * (ks - kappa) / soft), ef * (r + (1 - r) / x))
+
     def planes(self, sigma, ef):
         """Mobilised ratio, shifted normal stress and flow vectors (M, 3) of every plane at sigma."""
         p = self.p
@@ -114,9 +123,12 @@ def _weak_slip(law, ratio, kap_n, ef, mu):
     return (-bq + np.sqrt(bq * bq + 4 * (mu / p.A) * c0 + 0j)) / (2 * mu / p.A)
 
 
-def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None):
+def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None, grad=None):
     """F(x) and the slips of all planes for the unknowns x (see the module docstring); ``mu`` (M,) the
-    step stabilisation's hardening floor of each plane [1/m] (None: none)."""
+    step stabilisation's hardening floor of each plane [1/m] (None: none); ``grad`` = (post, c0, m) for
+    the implicit gradient: the strong planes ``post`` (indices into ``strong``) past their softening peak
+    soften with kappa + c0 - m S on the softening branch (continued below the peak), S = x[-1] the sum of their slip
+    increments (its equation last)."""
     p = law.p
     mu = np.zeros(len(kap_n)) if mu is None else mu
     ns = strong.size
@@ -144,10 +156,19 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None):
     S = ((1 + p.nu) * (sig - sig_n) - p.nu * tr * np.eye(3)) / p.E
     R = S + ep + dl / 3 * np.eye(3) - de
     u = dk[strong] / p.A
-    v = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft) + mu[strong] * dk[strong] - ratio[strong]
+    eta = law.hardening(kap_n[strong] + dk[strong], ef[strong], soft)
+    extra = []
+    if grad is not None:
+        post, c0, m = grad
+        S = x[-1]
+        eta = eta.astype(np.result_type(eta, x, c0))
+        k_hat = kap_n[strong][post] + dk[strong][post] + c0 - m * S
+        eta[post] = law.softening(k_hat, ef[strong][post], soft)
+        extra = [(S - np.sum(dk[strong][post])) / p.A]
+    v = eta + mu[strong] * dk[strong] - ratio[strong]
     phi = _fb(u, v)
     phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
-    return np.concatenate([_six(R), phi, phi0]), dk
+    return np.concatenate([_six(R), phi, phi0, np.asarray(extra)]), dk
 
 
 def _fb(u, v):
@@ -198,8 +219,8 @@ def _newton(law, x, args, scale, tol, maxit):
     return False, x
 
 
-def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float = 1e-11, maxit: int = 40,
-                 max_halvings: int = 12):
+def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=None, tol: float = 1e-11,
+                 maxit: int = 40, max_halvings: int = 12):
     """One point's update by the reference algorithm.
 
     Parameters
@@ -207,10 +228,13 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     model : material.CPAModel
     d_strain, stress : (3, 3) or (N, 3, 3) tension positive (``point`` picks one of a batch).
     state : the state dict of ``model`` (batch), read at ``point``.
+    d_nonlocal : None or (N,) the increment of the nonlocal field ebar (a model with a ``nonlocal_length``):
+        the gradient-enhanced update (``docs/regularisation.md``, section 3).
 
     Returns
     -------
-    stress (3, 3), kappa (M,), opening dlambda of the cut-off, tangent (3, 3, 3, 3).
+    stress (3, 3), kappa (M,), opening dlambda of the cut-off, tangent (3, 3, 3, 3), or with ``d_nonlocal``
+    a :class:`material.base.CoupledTangent` of this point (unbatched: (3, 3, 3, 3), (3, 3), e, (3, 3), ()).
     Raises :class:`ReferenceFailure` when no solution is found.
     """
     law = _Law(model)
@@ -220,19 +244,28 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     eps_n = np.asarray(state["strain"], float)[point]
     kap_n = np.asarray(state["kappa"], float)[point]
     soft = 0.0
+    gradient = d_nonlocal is not None
     if p.softening_slip > 0:
         h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)))[point]
-        soft = p.softening_slip * p.t / h if model.regularise else p.softening_slip
+        soft = p.softening_slip * p.t / h if (model.regularise and not gradient) else p.softening_slip
     strong = np.flatnonzero((kap_n > p.A) | ((soft > 0) & (kap_n >= p.kappa_instability)))
+    grad, e_n = None, 0.0
+    if gradient:
+        post = np.flatnonzero((soft > 0) & (kap_n[strong] >= p.kappa_instability))
+        e_n = float(np.sum(kap_n[strong][post] - p.kappa_instability)) / p.t
+        ebar = float(np.asarray(state["nonlocal"])[point] + np.asarray(d_nonlocal, float).reshape(-1)[point])
+        m = model.over_nonlocal
+        grad = (post, m * p.t * (ebar - e_n), m) if post.size else None
     # the step stabilisation's floor of each plane: mu (w/t) G / sigma~ at sigma_n
     st_n = law.planes(sig_n, law.eta_f(eps_n + _sym(_six(np.asarray(d_strain, float).reshape(-1, 3, 3)[point]))))[1]
     mu = model.options.stabilisation * law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)
     ns = strong.size
+    ng = 0 if grad is None else 1
     de6 = _six(de)
     r_scale = np.abs(de6).max() + max(np.abs(sig_n).max(), p.apex_stress) / p.E
-    scale = np.ones(6 + ns + 1)
+    scale = np.ones(6 + ns + 1 + ng)
     scale[:6] /= r_scale
-    scale[-1] /= r_scale
+    scale[6 + ns] /= r_scale
     # elastic trial
     trial = sig_n + 2 * law.G * de + law.lam * np.trace(de) * np.eye(3)
     ef = law.eta_f(eps_n + de)
@@ -240,13 +273,20 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     eta_n = law.hardening(kap_n, ef, soft)
     stiff = np.einsum("ij,kl->ijkl", np.eye(3), np.eye(3)) * law.lam + law.G * (
         np.einsum("ik,jl->ijkl", np.eye(3), np.eye(3)) + np.einsum("il,jk->ijkl", np.eye(3), np.eye(3)))
+    if grad is not None:  # the planes past their peak at the nonlocal field's level
+        at = strong[grad[0]]
+        eta_n[at] = law.softening(kap_n[at] + grad[1], ef[at], soft)
     if np.trace(trial) <= 0 and np.all(st > 0) and np.all(ratio <= eta_n):
-        return trial, kap_n.copy(), 0.0, stiff
-    x_done = np.concatenate([_six(sig_n), np.zeros(ns), [0.0]])
+        if not gradient:
+            return trial, kap_n.copy(), 0.0, stiff
+        from material.base import CoupledTangent
+
+        return trial, kap_n.copy(), 0.0, CoupledTangent(stiff, np.zeros((3, 3)), e_n, np.zeros((3, 3)), 0.0)
+    x_done = np.concatenate([_six(sig_n), np.zeros(ns), [0.0], np.zeros(ng)])
     lam_done, h, halvings = 0.0, 1.0, 0
     while lam_done < 1.0:
         lam = min(1.0, lam_done + h)
-        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong, mu), scale, tol,
+        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong, mu, grad), scale, tol,
                         maxit)
         if ok:
             lam_done, x_done, h = lam, x, min(2 * h, 1.0)
@@ -255,7 +295,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
             halvings += 1
             if halvings > max_halvings:
                 raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
-    args = (sig_n, de6, eps_n, kap_n, soft, strong, mu)
+    args = (sig_n, de6, eps_n, kap_n, soft, strong, mu, grad)
     F, dk = residual(law, x_done, *args)
     J = _jacobian(law, x_done, args, scale)
     # d F / d d_eps by the complex step on the increment (tensor components, shear counted once)
@@ -263,11 +303,31 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, tol: float =
     for j in range(6):
         dc = de6.astype(complex)
         dc[j] += 1j * _H
-        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong, mu)[0].imag / _H * scale
-    dxde = -np.linalg.solve(J, Fe)[:6]  # d sigma_ij / d d_eps_kl with d_eps_kl and d_eps_lk moved together
+        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong, mu, grad)[0].imag \
+            / _H * scale
+    dxde = -np.linalg.solve(J, Fe)  # d x / d d_eps_kl with d_eps_kl and d_eps_lk moved together
+    tangent = _tensor4(dxde[:6])
+    stress, kappa, dl = _sym(x_done[:6]), kap_n + np.maximum(dk.real, 0.0), x_done[6 + ns]
+    if not gradient:
+        return stress, kappa, dl, tangent
+    from material.base import CoupledTangent
+
+    if grad is None:  # no plane past its peak: nothing depends on ebar, and e stays e_n
+        return stress, kappa, dl, CoupledTangent(tangent, np.zeros((3, 3)), e_n, np.zeros((3, 3)), 0.0)
+    post, c0, m = grad
+    fz = residual(law, x_done.astype(complex), *args[:-1], (post, c0 + 1j * _H * m * p.t, m))[0].imag / _H * scale
+    dx_ebar = -np.linalg.solve(J, fz)
+    de_local = np.array([dxde[-1, b] * (1.0 if k == l else 0.5) for b, (k, l) in enumerate(_IJ)]) / p.t
+    return stress, kappa, dl, CoupledTangent(tangent, _sym(dx_ebar[:6]), e_n + x_done[-1] / p.t, _sym(de_local),
+                                             dx_ebar[-1] / p.t)
+
+
+def _tensor4(d6):
+    """(3, 3, 3, 3) from the (6, 6) derivative of the six stress components by the six strain components
+    (an off-diagonal strain component moved with its transpose)."""
     tangent = np.zeros((3, 3, 3, 3))
     for a, (i, j) in enumerate(_IJ):
         for b, (k, l) in enumerate(_IJ):
-            v = dxde[a, b] * (1.0 if k == l else 0.5)
+            v = d6[a, b] * (1.0 if k == l else 0.5)
             tangent[i, j, k, l] = tangent[j, i, k, l] = tangent[i, j, l, k] = tangent[j, i, l, k] = v
-    return _sym(x_done[:6]), kap_n + np.maximum(dk.real, 0.0), x_done[-1], tangent
+    return tangent
