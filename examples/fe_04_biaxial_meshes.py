@@ -186,9 +186,10 @@ def _plot(rows, path):
     import matplotlib.pyplot as plt
 
     fig, (ax, ax_drop) = plt.subplots(1, 2, figsize=(10, 4))
-    colours = dict(zip(sorted({r["resolution"] for r in rows}), ("C0", "C1", "C2", "C3", "C4", "C5")))
+    keys = sorted({(r["variant"], r["resolution"]) for r in rows})
+    colours = {k: f"C{i % 10}" for i, k in enumerate(keys)}
     for r in sorted(rows, key=lambda r: (r["variant"], r["resolution"])):
-        style = dict(color=colours[r["resolution"]], ls=STYLES.get(r["variant"], ":"),
+        style = dict(color=colours[(r["variant"], r["resolution"])], ls=STYLES.get(r["variant"], ":"),
                      label=f"h = {r['element_size_mm']:.2f} mm, {r['variant']}")
         e, q = r["history"]["eps_a"], r["history"]["q_kPa"]
         ax.plot(e, q, **style)
