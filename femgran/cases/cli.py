@@ -42,6 +42,8 @@ def _material(args) -> dict:
     if args.law == "cpa":
         spec = {"law": "cpa", "set": parse_set(args.set), "stabilisation": args.stabilisation}
         spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
+        if args.nonlocal_length is not None:
+            spec["nonlocal_length"] = args.nonlocal_length
     elif args.law == "von_mises":
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
     elif args.law == "drucker_prager":
@@ -61,6 +63,9 @@ def _material_flags(p):
     g.add_argument("--stabilisation", type=float, default=0.0, metavar="MU",
                    help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
                         "carry a footing to its end, docs/cpa_law.md section 4)")
+    g.add_argument("--nonlocal-length", type=float, default=None, metavar="L",
+                   help="CPA with post-peak softening: regularise it by the implicit gradient of length L [m] "
+                        "instead of the crack band (docs/regularisation.md)")
     g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
     g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")

@@ -266,3 +266,15 @@ def test_cpa_shear_band_with_the_gradient_runs_past_the_peak(tmp_path):
 
     ebar = meshio.read(sorted(tmp_path.glob("*.vtu"))[-1]).point_data["nonlocal"]
     assert ebar.max() > 0.0 and ebar.min() >= -1e-9  # the post-peak slip strain, smoothed
+
+
+def test_the_command_line_takes_the_gradient(tmp_path, capsys):
+    from femgran.cli import main
+
+    main(["biaxial", "--set", "zeta=1.05", "--set", "softening_slip=0.03", "--nonlocal-length", "0.01",
+          "--axial-strain", "0.004", "--steps", "2", "--resolution", "4", "--out", str(tmp_path), "--no-progress"])
+    assert "implicit gradient: length l = 0.01 m" in (tmp_path / "parameters.json").read_text()
+    # without softening the gradient has nothing to regularise: one line naming the key and what is allowed
+    assert main(["biaxial", "--nonlocal-length", "0.01", "--axial-strain", "0.004", "--steps", "2",
+                 "--resolution", "4", "--out", str(tmp_path / "bad"), "--no-progress"]) == 2
+    assert "nonlocal_length = 0.01" in capsys.readouterr().err
