@@ -8,7 +8,9 @@ The algorithm (one load step from load factor t_n to t_{n+1} = t_n + dt):
    step, or zero (``predictor="none"``).
 2. Newton iteration k: strain increment d_eps = B du at every quadrature point; ONE material call
    ``update(d_eps, sigma_n, state_n)`` from the committed start-of-step state gives sigma, the state and
-   the consistent tangent D; residual r = f_int(sigma) - f_ext(t_{n+1}) on the free DOFs.
+   the consistent tangent D; residual r = f_int(sigma) - f_ext(t_{n+1}) on the free DOFs. A coupled
+   discretisation (:mod:`femgran.gradient`: u and a nonlocal field) adds the field's increment at the
+   points to the call (``disc.point_inputs``) and the field's rows to r and K; the rest is unchanged.
 3. Converged when |r_free| <= tol * max(|f_ext|, |reaction|, force_floor) (the reaction is the internal
    force on the prescribed DOFs). Otherwise solve K_ff ddu = -r_free with K = sum B^T D B (numba kernel,
    :mod:`femgran.assembly`), and update du <- du + s ddu with the step length s of a backtracking line
