@@ -154,6 +154,7 @@ def test_a_homogeneous_specimen_follows_the_local_law():
     assert np.abs(f_g - f_l).max() <= 1e-6 * f_l.max()
 
 
+@pytest.mark.filterwarnings("ignore:Matrix is exactly singular")  # the local runs soften to zero strength
 def test_softening_bar_converges_with_the_mesh_and_its_zone_scales_with_the_length():
     """Measured (force at 1.2e-2 middle elongation, kN/m; peak 10.93): l = 0.1 on 20/40/80 elements
     7.284/7.154/7.105, zone 0.30/0.30/0.275; l = 0.05 on 40/80 elements zone 0.15/0.15. The local law on
