@@ -91,6 +91,7 @@ class GradientDiscretisation(Discretisation):
         n0 = self.n_displacement_dofs
         self._helmholtz = sp.csr_matrix((self.scale * L.data, (L.row + n0, L.col + n0)), shape=(self.ndofs,) * 2)
         self._pattern = None
+        self._coupling = None
 
     # ------------------------------------------------------------------ the nonlocal field
     def nonlocal_values(self, u: np.ndarray) -> np.ndarray:
@@ -146,13 +147,22 @@ class GradientDiscretisation(Discretisation):
                                        optimize=True)
         c = np.asarray(tangent.dlocal_dnonlocal).reshape(self.nelems, self.nqp)
         k_ee = -self.scale * np.einsum("eqa,eq,eqb,eq->eab", phi, c, phi, dx, optimize=True)
-        nel, nu_e, ne = self.nelems, self.edofs.shape[1], self.nbe
-        rows = np.concatenate([np.repeat(self.edofs, ne, axis=1).ravel(),
-                               np.repeat(self.nonlocal_edofs, nu_e, axis=1).ravel(),
-                               np.repeat(self.nonlocal_edofs, ne, axis=1).ravel()])
-        cols = np.concatenate([np.tile(self.nonlocal_edofs, (1, nu_e)).ravel(),
-                               np.tile(self.edofs, (1, ne)).ravel(),
-                               np.tile(self.nonlocal_edofs, (1, ne)).ravel()])
+        nel = self.nelems
+        rows, cols = self._coupling_pattern()
         data = np.concatenate([k_ue.reshape(nel, -1).ravel(), k_eu.reshape(nel, -1).ravel(), k_ee.ravel()])
         coupling = sp.csr_matrix((data, (rows, cols)), shape=(self.ndofs, self.ndofs))
         return (K + coupling + self._helmholtz).tocsr()
+
+    def _coupling_pattern(self):
+        """(rows, cols) of the element blocks u-ebar, ebar-u and ebar-ebar, in the order :meth:`stiffness`
+        lays out their values (made once)."""
+        if self._coupling is None:
+            nu_e, ne = self.edofs.shape[1], self.nbe
+            rows = np.concatenate([np.repeat(self.edofs, ne, axis=1).ravel(),
+                                   np.repeat(self.nonlocal_edofs, nu_e, axis=1).ravel(),
+                                   np.repeat(self.nonlocal_edofs, ne, axis=1).ravel()])
+            cols = np.concatenate([np.tile(self.nonlocal_edofs, (1, nu_e)).ravel(),
+                                   np.tile(self.edofs, (1, ne)).ravel(),
+                                   np.tile(self.nonlocal_edofs, (1, ne)).ravel()])
+            self._coupling = (rows, cols)
+        return self._coupling
