@@ -165,9 +165,10 @@ class Checkpointer:
     def due(self, n_step: int) -> bool:
         return self.every > 0 and n_step % self.every == 0
 
-    def write(self, solver, run_state: dict, writer=None) -> Path:
+    def write(self, solver, run_state: dict, writer=None, data: dict | None = None) -> Path:
         """A checkpoint of the solver's committed state after ``run_state["n_step"]`` converged steps (the
-        arrays are copied now; the files follow in the background, see the class docstring)."""
+        arrays are copied now; the files follow in the background, see the class docstring), with the
+        case's arrays ``data`` (:attr:`femgran.cases.base.Problem.persist`) as ``data__<key>``."""
         from material.version import __version__
 
         self.wait()
@@ -178,6 +179,7 @@ class Checkpointer:
                   **{f"state__{k}": np.asarray(v) for k, v in pts.state.items()}}
         if solver._committed_tangent is not None:
             arrays.update(_pack_tangent(solver._committed_tangent))
+        arrays.update({f"data__{k}": np.asarray(v) for k, v in (data or {}).items()})
         last = solver._last_increment
         if last is not None:
             arrays["last_du"] = last[0]

@@ -118,6 +118,8 @@ class Problem:
     columns : meaning, unit and sign convention of each column ``observe`` gives (the history's header).
     record : what ``build`` chose (mesh, resolved defaults, ...), written to ``parameters.json``.
     data : anything ``summarise`` needs besides the solution.
+    persist : the keys of ``data`` (numpy arrays, replaced rather than changed in place) that the checkpoints
+        keep and a resumed run gets back: what ``observe`` accumulates over the steps for ``summarise``.
     stages : a staged run (:class:`Stage`), each from the end state of the one before; the history gets the
         columns ``stage`` and ``time`` (stage k spans k..k+1), as does the field series. None: one stage of
         ``dirichlet``, ``f_fixed`` and the case's ``steps``.
@@ -135,6 +137,7 @@ class Problem:
     record: dict = field(default_factory=dict)
     fixed_steps: bool = False
     data: dict = field(default_factory=dict)
+    persist: tuple = ()
     stages: list | None = None
     control: object = None
     control_end: float | None = None
@@ -225,6 +228,12 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         else:
             _rescale_history(saved[1], scale, out_dir if continuing else None)
     run_state = None if saved is None else ck.restore(newton, *saved, scale=scale)
+    if saved is not None:
+        for key in problem.persist:
+            if f"data__{key}" not in saved[0]:
+                raise ValueError(f"checkpoint: lacks the case's {key!r} (written by an older version); rerun the case "
+                                 "from the start")
+            problem.data[key] = saved[0][f"data__{key}"].copy()
     writer = ckpt = None
     if out_dir is not None:
         from femgran.output import SeriesWriter, write_parameters
@@ -245,7 +254,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     with _interruptions() as signals:
         def after_step(solver, state):
             if ckpt is not None and (ckpt.due(state["n_step"]) or signals):
-                ckpt.write(solver, state, writer)
+                ckpt.write(solver, state, writer, {k: problem.data[k] for k in problem.persist})
             if signals:
                 return f"interrupted by {signals[0]} at t = {solver.t:.6g}"
             if max_steps is not None and state["n_step"] - first >= max_steps:
@@ -276,7 +285,8 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         writer.close(newton, sol.completed, sol.stop_reason)
     if ckpt is not None:
         if ckpt.last_step != newton.run_state["n_step"]:
-            ckpt.write(newton, newton.run_state, writer)  # the end, or the last converged step of a stop
+            ckpt.write(newton, newton.run_state, writer,  # the end, or the last converged step of a stop
+                       {k: problem.data[k] for k in problem.persist})
         ckpt.close()  # every checkpoint on disk before the run returns
     summary = case.summarise(sol, problem)
     sol.extra.update(params=params, **summary)

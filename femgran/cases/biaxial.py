@@ -141,14 +141,14 @@ class Biaxial(Drainage):
                    Dirichlet(d.vector_dofs(top, [1]), -ea * H, name="top"),
                    Dirichlet(d.vector_dofs(top, [0]), 0.0)]
         f_cell = d.pressure_force(np.concatenate([left_facets, b["right"]]), p0)
-        snaps: list[np.ndarray] = []  # strain at every converged step (float32), to locate the band
         rx, lx = d.vector_dofs(right, [0]), d.vector_dofs(left, [0])
+        peak = _PeakStrains(d.n_points)
 
         def observe(s):
             q = -float(np.sum(s.reaction[bcs[1].dofs])) / W - p0
             e_a = -float(np.mean(s.u[bcs[1].dofs])) / H
             e_l = -(float(np.mean(s.u[rx])) - float(np.mean(s.u[lx]))) / W
-            snaps.append(np.asarray(s.points.state["strain"], dtype=np.float32))
+            peak.add(q, s.points.state["strain"])
             return {"eps_a": e_a, "eps_lateral": e_l, "eps_v": e_a + e_l, "q_kPa": q}
 
         control = None
@@ -161,7 +161,7 @@ class Biaxial(Drainage):
         return Problem(d, mat, bcs, f_fixed=f_cell, initial_stress=-p0 * np.eye(3), observe=observe, columns=columns,
                        record={"height_m": H, "vertical_axis": "y", "regularisation": _regularisation(mat),
                                "control": "lateral expansion" if control is not None else "platen displacement"},
-                       data={"snaps": snaps}, control=control,
+                       data=peak.data, persist=_PeakStrains.KEYS, control=control,
                        control_end=float(self.control_strain) * W if control is not None else None)
 
     def summarise(self, sol, problem) -> dict:
@@ -208,6 +208,40 @@ def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, wid
                output=Output(out, progress, write_every, plots, checkpoint_every), resume=resume)
 
 
+class _PeakStrains:
+    """The strain at the history rows whose q is within 1 % of the largest q so far (float32), kept in
+    ``data`` under :data:`KEYS` so that the checkpoints carry it (a resumed run measures the band from the
+    same peak): the band is measured from the first row within 1 % of the final peak, which every later
+    running maximum keeps among these rows. Memory: a few rows after a sharp peak, more on a plateau."""
+
+    KEYS = ("peak_rows", "peak_q", "peak_strains", "peak_count")
+
+    def __init__(self, n_points: int):
+        self.data = {"peak_rows": np.zeros(0, np.int64), "peak_q": np.zeros(0),
+                     "peak_strains": np.zeros((0, n_points, 3, 3), np.float32), "peak_count": np.zeros(1, np.int64)}
+
+    def add(self, q: float, strain) -> None:
+        d = self.data
+        row = int(d["peak_count"][0])
+        d["peak_count"] = np.array([row + 1])
+        q_max = max(q, float(d["peak_q"].max()) if d["peak_q"].size else q)
+        keep = d["peak_q"] >= 0.99 * q_max
+        rows, qs, strains = d["peak_rows"][keep], d["peak_q"][keep], d["peak_strains"][keep]
+        if q >= 0.99 * q_max:
+            rows, qs = np.append(rows, row), np.append(qs, q)
+            strains = np.concatenate([strains, np.asarray(strain, np.float32)[None]])
+        d["peak_rows"], d["peak_q"], d["peak_strains"] = rows, qs, strains
+
+    @staticmethod
+    def strain_at(data: dict, row: int) -> np.ndarray:
+        """The kept strain of history row ``row`` (N, 3, 3)."""
+        where = np.flatnonzero(data["peak_rows"] == row)
+        if not where.size:
+            raise ValueError(f"the strain of history row {row} was not kept (rows kept: "
+                             f"{data['peak_rows'].tolist()})")
+        return data["peak_strains"][int(where[0])].astype(float)
+
+
 def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float) -> dict:
     """Peak friction and dilatancy from the global response, and the band of the strain increment after the peak."""
     h = sol.history
@@ -222,7 +256,7 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
     k0, k1 = max(k - 1, 0), min(k + 1, len(q) - 1)
     de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
     psi = float(np.degrees(np.arcsin(np.clip(-(de1 + de3) / (de1 - de3), -1, 1)))) if de1 != de3 else float("nan")
-    dstrain = np.asarray(sol.state["strain"]) - data["snaps"][k].astype(float)
+    dstrain = np.asarray(sol.state["strain"]) - _PeakStrains.strain_at(data, k)
     dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
     h_el = float(d.element_size().max())
