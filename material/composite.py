@@ -100,7 +100,6 @@ class Composite:
         return state
 
     def _merge(self, state):
-        n = self.assignment.size
         for key in _MERGED:
             parts = [(idx, state[f"{k}:{key}"]) for k, idx in enumerate(self.index) if f"{k}:{key}" in state]
             if not parts or any(arr.shape != parts[0][1].shape for _, arr in parts):
