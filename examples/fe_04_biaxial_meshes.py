@@ -2,8 +2,8 @@
 
 CPA ``ottawa_c109`` with the post-peak softening switched on (zeta = 1.05: a plane reaches eta_f at
 kappa* = A / (zeta - 1); beyond it eta decays to 0.65 eta_f with the slip scale ``softening_slip``),
-p0 = 100 kPa, a weak zone (eta0 10 % lower) at the bottom-left corner as the trigger, no geometric
-imperfection, Q1 B-bar elements with 8, 12 and 16 elements across the 50 mm width. Each mesh runs
+p0 = 100 kPa, a weak zone (eta0 10 % lower, W/6 wide and W/3 high at the bottom-left corner: the same
+region on every mesh with a multiple of 6 elements across) as the trigger, no geometric imperfection, Q1 B-bar elements with 8, 12 and 16 elements across the 50 mm width. Each mesh runs
 twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
 t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
 it were one band thickness wide).
@@ -39,7 +39,9 @@ from material.table import Table
 
 VARIANTS = ("regularised", "unregularised", "gradient")
 STYLES = {"crack band": "-", "unregularised": "--"}  # line style of each variant in the plot (gradient: ":")
-POST_PEAK_STRAINS = (0.035, 0.045, 0.06)  # axial strains at which the post-peak q of the meshes is compared
+POST_PEAK_STRAINS = (0.035, 0.045, 0.06)
+#: The weak zone: the square of side W/3 centred on the left face at H/12 = W/6, i.e. x < W/6, y < W/3.
+WEAK_ZONE_SIZE, WEAK_ZONE_HEIGHT = 1.0 / 3.0, 1.0 / 12.0  # axial strains at which the post-peak q of the meshes is compared
 
 
 def main(argv=None) -> dict:
@@ -83,7 +85,8 @@ def study(args) -> list[Run]:
                 "set": {"E": args.youngs_modulus, "zeta": 1.05, "softening_slip": args.softening_slip,
                         "residual_ratio": 0.65}}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
-              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": 0.01, "platens": args.platens}
+              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT, "weak_zone_size": WEAK_ZONE_SIZE,
+              "platens": args.platens}
     if args.length <= 0:
         raise ValueError(f"--length = {args.length!r}: must be > 0 (m)")
     runs = []

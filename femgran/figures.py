@@ -14,7 +14,8 @@ complete) and a drawing step that reads the run folders:
   angle, and its strength against the homogeneous element test;
 * ``shear-band`` -- the plane-strain biaxial test with softening on three meshes: curves, band angle and
   thickness against the element size (:mod:`femgran.band`), the bands, and the band angle against the
-  deposition angle (0, 30, 60, 90 on the middle mesh).
+  deposition angle (0, 30, 60, 90 on the middle mesh); crack band in the reduced set, the implicit
+  gradient (l = 6 mm, to 8 % axial strain) in the full set.
 
 Every PNG has a CSV of the same stem with what it draws; ``OUT/README.md`` lists each figure with a
 sentence on what it shows. The default is a reduced size (coarse meshes, few steps, DEM samples at a
@@ -115,20 +116,31 @@ def _uniformity_runs(full: bool) -> list[Run]:
 
 _BAND_MATERIAL = {"preset": "ottawa_c109", "stabilisation": 0.1,
                   "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65}}
+#: The band's length scale of the full set: the implicit gradient with l = 6 mm (docs/regularisation.md).
+_BAND_LENGTH_M = 0.006
 
 
-def _band_setup(full: bool) -> tuple[list[int], dict]:
-    meshes = [8, 12, 16] if full else [4, 6, 8]
-    fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 0.01, "imperfection": 0.0,
-             **({"axial_strain": 0.06, "steps": 240} if full else {"axial_strain": 0.05, "steps": 60})}
-    return meshes, fixed
+def _band_setup(full: bool) -> tuple[list[int], dict, dict]:
+    """Meshes, case fields and material of the shear-band study: the reduced set on coarse meshes with the
+    crack band (minutes); the full set on meshes of h = 0.7, 0.46 and 0.35 l with the implicit gradient
+    to 8 % (the meshes have 6, 9 and 12 times W/72 as element size, so the weak zone is the same region)."""
+    fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 1.0 / 12.0, "weak_zone_size": 1.0 / 3.0,
+             "imperfection": 0.0}
+    if full:
+        return [12, 18, 24], {**fixed, "axial_strain": 0.08, "steps": 320}, \
+            {**_BAND_MATERIAL, "nonlocal_length": _BAND_LENGTH_M}
+    return [4, 6, 8], {**fixed, "axial_strain": 0.05, "steps": 60}, _BAND_MATERIAL
+
+
+def _band_regularisation(full: bool) -> str:
+    return f"implicit gradient, l = {1e3 * _BAND_LENGTH_M:g} mm" if full else "crack band"
 
 
 def _band_runs(full: bool) -> list[Run]:
-    meshes, fixed = _band_setup(full)
-    return (_case_runs("biaxial", "resolution", meshes, fixed, _BAND_MATERIAL)
-            + _case_runs("biaxial", "alpha_deg", [30.0, 60.0, 90.0], {**fixed, "resolution": meshes[1]},
-                         _BAND_MATERIAL, prefix="band_alpha"))
+    meshes, fixed, law = _band_setup(full)
+    return (_case_runs("biaxial", "resolution", meshes, fixed, law)
+            + _case_runs("biaxial", "alpha_deg", [30.0, 60.0, 90.0], {**fixed, "resolution": meshes[1]}, law,
+                         prefix="band_alpha"))
 
 
 def _completed(records: dict, prefix: str) -> list[tuple[str, dict]]:
@@ -264,8 +276,12 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     a2.set(xlabel="element size h [mm]", ylabel="angle from the minor stress direction [deg]", title="band angle")
     a3.plot(sizes, [1e3 * r["summary"].get("band_thickness_m", np.nan) for _, r in runs], "o-",
             label="band thickness (FE)")
-    a3.plot(sizes, [3 * h for h in sizes], "k:", label="3 elements")
-    a3.set(xlabel="element size h [mm]", ylabel="band thickness [mm]", title="band thickness (crack band)")
+    if full:
+        a3.axhline(1e3 * _BAND_LENGTH_M, color="k", ls=":", label="l, the gradient's length")
+    else:
+        a3.plot(sizes, [3 * h for h in sizes], "k:", label="3 elements")
+    a3.set(xlabel="element size h [mm]", ylabel="band thickness [mm]",
+           title=f"band thickness ({_band_regularisation(full)})")
     _tidy(a1, a2, a3)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_meshes.png")
@@ -275,9 +291,10 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     fig.colorbar(pc, ax=axes[0].tolist(), label="|plastic strain|", shrink=0.8)
     save_figure(fig, out / "shear_band_fields.png")
     return {**drawn,
-            "shear_band_meshes": "The plane-strain biaxial test with softening on three meshes (crack-band "
-                                 "regularised): curves, the band angle against the element size with the "
-                                 "Coulomb, Roscoe and Arthur angles, and the band's measured thickness.",
+            "shear_band_meshes": f"The plane-strain biaxial test with softening on three meshes "
+                                 f"({_band_regularisation(full)}): curves, the band angle against the element "
+                                 f"size with the Coulomb, Roscoe and Arthur angles, and the band's measured "
+                                 f"thickness.",
             "shear_band_fields": "The shear bands: plastic strain at the end of each run, one panel per mesh."}
 
 
@@ -287,7 +304,7 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
 
     from material.plotting import save_figure
 
-    meshes, _ = _band_setup(full)
+    meshes = _band_setup(full)[0]
     runs = [kr for kr in _completed(records, "biaxial_") if kr[1]["values"]["resolution"] == meshes[1]]
     runs += _completed(records, "band_alpha_")
     if len(runs) < 2:
@@ -305,7 +322,7 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         ax.plot(alphas, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
-           title=f"biaxial with softening, {meshes[1]} elements across")
+           title=f"biaxial with softening, {meshes[1]} elements across, {_band_regularisation(full)}")
     _tidy(ax)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_vs_alpha.png")

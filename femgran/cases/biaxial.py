@@ -8,10 +8,13 @@ vertical faces and is the in-situ stress (-p0 I).
 
 Imperfection: the left face is pushed inwards by ``imperfection * W`` in a smooth bump at mid-height
 (a geometric imperfection: every point carries the same material, so any material object works), and
-optionally (``weak_zone`` > 0, CPA materials) a material imperfection: the elements whose centre lies
-within 0.1 W of the point (0, ``weak_zone_height`` H) of the left face have eta0 lowered by that
-fraction. Placed off mid-height (default H/4) it selects one band out of the symmetric pair a
-mid-height imperfection triggers (the usual trigger of a band that crosses the specimen).
+optionally (``weak_zone`` > 0, CPA materials) a material imperfection: the quadrature points in the
+square of side ``weak_zone_size`` W centred on the left face at (0, ``weak_zone_height`` H) have eta0
+lowered by that fraction. Placed off mid-height (default H/4) it selects one band out of the symmetric
+pair a mid-height imperfection triggers (the usual trigger of a band that crosses the specimen). The
+zone is a fixed region of the specimen, sampled at the quadrature points, so it converges with the mesh,
+and it is the same region on every mesh whose element edges run along its sides (the shear-band study's
+zone, W/6 by W/3 at the bottom-left corner, on 6, 12, 18, 24 ... elements across).
 
 The band: measured in the increment of the deviatoric strain between the peak and the last converged
 step (:func:`femgran.band.measure_band`, the bump's own neighbourhood left out): ``band_angle_deg``,
@@ -87,11 +90,12 @@ class Biaxial(Drainage):
     imperfection: float = param(0.02, "inward bump of the left face at mid-height / W (0: perfect specimen)")
     volumetric: str = param("bbar", "'bbar' or 'standard'")
     weak_zone: float = param(0.0, "relative drop of eta0 near (0, weak_zone_height H) (CPA; 0: none)")
-    weak_zone_height: float = param(0.25, "height of the weak zone / H, in (0, 1)")
+    weak_zone_height: float = param(0.25, "height of the weak zone's centre / H, in (0, 1)")
     platens: str = param("smooth", "'smooth' (end faces slide freely) or 'rough'")
     control_strain: float = param(0.0, "path following: 0 = the platen displacement drives the test; > 0 = the "
                                        "lateral expansion of the specimen (mean face displacements / W, extension +) "
                                        "drives it to this value and the platen follows, past a snap-back")
+    weak_zone_size: float = param(0.2, "side of the weak zone's square / W, in (0, 1]")
 
     def __post_init__(self):
         check_positive("p0_kPa", self.p0_kPa)
@@ -109,6 +113,8 @@ class Biaxial(Drainage):
         check_positive("control_strain", self.control_strain, allow_zero=True)
         if self.weak_zone > 0 and not 0.0 < float(self.weak_zone_height) < 1.0:
             raise ValueError(f"weak_zone_height = {self.weak_zone_height!r}: allowed 0 < weak_zone_height < 1")
+        if self.weak_zone > 0 and not 0.0 < float(self.weak_zone_size) <= 1.0:
+            raise ValueError(f"weak_zone_size = {self.weak_zone_size!r}: allowed 0 < weak_zone_size <= 1")
 
     def build(self, mat) -> Problem:
         from femgran.assembly import discretisation_for
@@ -127,7 +133,8 @@ class Biaxial(Drainage):
         left_facets = np.flatnonzero(np.all(np.isin(m.facets, left_nodes), axis=0))
         d = discretisation_for(mat, m, self.order, self.volumetric)
         if self.weak_zone > 0:
-            mat = _with_weak_zone(mat, float(self.weak_zone), m, d, W, float(self.weak_zone_height) * H)
+            mat = _with_weak_zone(mat, float(self.weak_zone), d, float(self.weak_zone_size), W,
+                                  float(self.weak_zone_height) * H)
         b = m.boundaries
         bot, top = d.facet_scalar_dofs(b["bottom"]), d.facet_scalar_dofs(b["top"])
         right = d.facet_scalar_dofs(b["right"])
@@ -267,19 +274,24 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
                 reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
 
 
-def _with_weak_zone(mat, weak: float, mesh, d, W: float, y0: float):
-    """A Composite: ``mat`` everywhere but in the elements near (0, y0), where eta0 is (1 - weak) x."""
+def _with_weak_zone(mat, weak: float, d, size: float, W: float, y0: float):
+    """A Composite: ``mat`` everywhere but at the quadrature points in the square of side ``size`` W centred at
+    (0, y0), where eta0 is (1 - weak) x."""
     from material import CPAModel
     from material.composite import Composite
 
     if not isinstance(mat, CPAModel):
         raise ValueError(f"weak_zone = {weak!r}: needs a CPA material (CPAModel, parameters or a preset), "
                          f"got {type(mat).__name__}")
-    centres = mesh.p[:, mesh.t].mean(axis=1)
-    h = d.element_size()[:: d.nqp]
-    inside = np.hypot(centres[0], centres[1] - y0) < 0.1 * W + 0.5 * h
+    x = d.quadrature_points()
+    half = 0.5 * size * W
+    inside = (x[:, 0] < half) & (np.abs(x[:, 1] - y0) < half)
+    if not inside.any():
+        raise ValueError(f"weak_zone_size = {size!r}: the weak zone ({2 * half:.3g} m across) holds no quadrature "
+                         f"point of this mesh (element size {float(d.element_size().max()):.3g} m); allowed: a "
+                         f"zone about one element across or more (a larger weak_zone_size or a finer resolution)")
     weak_mat = mat.replace(params=mat.params.replace(eta0=mat.params.eta0 * (1 - weak)))
-    return Composite([mat, weak_mat], np.repeat(inside.astype(np.int64), d.nqp))
+    return Composite([mat, weak_mat], inside.astype(np.int64))
 
 
 def _regularisation(mat) -> str:

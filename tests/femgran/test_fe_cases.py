@@ -336,3 +336,29 @@ def test_weak_zone_makes_a_composite_that_keeps_failed_points(tmp_path):
     assert sol.completed and sol.extra["params"]["weak_zone"] == 0.05
     with pytest.raises(ValueError, match="weak_zone = 0.05: needs a CPA material"):
         biaxial(material.LinearElastic(6000.0, 0.3), weak_zone=0.05, steps=1, resolution=4)
+
+
+def test_weak_zone_is_the_same_region_on_every_mesh_whose_edges_follow_it():
+    """The shear-band study's zone (W/6 wide, W/3 high at the bottom-left corner) covers exactly W^2/18 on
+    every mesh with a multiple of 6 elements across, and approximately on others; a zone that holds no
+    quadrature point, or a size outside (0, 1], is refused naming the key."""
+    from femgran.assembly import discretisation_for
+    from femgran.cases.biaxial import Biaxial, _with_weak_zone
+    from femgran.mesh import rectangle
+
+    W = 0.05
+    law = material.CPAModel("ottawa_c109")
+    areas = {}
+    for n in (4, 6, 8, 12, 18):
+        d = discretisation_for(law, rectangle(np.linspace(0, W, n + 1), np.linspace(0, 2 * W, 2 * n + 1)))
+        zone = _with_weak_zone(law, 0.1, d, 1.0 / 3.0, W, 2 * W / 12)
+        areas[n] = float(d.dx.ravel()[zone.assignment == 1].sum()) / W ** 2
+        assert zone.laws[1].params.eta0 == pytest.approx(0.9 * law.params.eta0)
+    for n in (6, 12, 18):
+        assert areas[n] == pytest.approx(1.0 / 18.0, rel=1e-12)
+    assert areas[4] == pytest.approx(1.0 / 18.0, rel=0.2) and areas[8] == pytest.approx(1.0 / 18.0, rel=0.1)
+    d = discretisation_for(law, rectangle(np.linspace(0, W, 3), np.linspace(0, 2 * W, 5)))
+    with pytest.raises(ValueError, match="weak_zone_size = 0.01: the weak zone .* holds no quadrature point"):
+        _with_weak_zone(law, 0.1, d, 0.01, W, 0.05)
+    with pytest.raises(ValueError, match=r"weak_zone_size = 1.5: allowed 0 < weak_zone_size <= 1"):
+        Biaxial(weak_zone=0.1, weak_zone_size=1.5)
