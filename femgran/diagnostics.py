@@ -24,6 +24,12 @@ path, appended to a CSV file as they come (``newton_log.csv`` in a case's run fo
 :func:`kinks_along` looks inside one iteration: it evaluates the material along a Newton direction and
 finds the points whose response has a kink there (and where), which is what makes a full Newton step
 overshoot; :func:`solver_kinks_along` does the same from a solver's increment and direction.
+
+:func:`zero_step_drift` checks what a cut-back relies on: that the material returns the committed stress
+for a vanishing step. Where it does not (an update that relaxes an overstress over the step whatever its
+size, or a law whose equations change between steps), the step's problem stays a finite distance from
+the committed equilibrium however far the step is cut back, and cut-backs cannot help; ``femgran replay``
+prints it for the state a run stopped in.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ import numpy as np
 
 from material.base import STATUS_FAILED
 
-__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along"]
+__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "zero_step_drift"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
@@ -155,7 +161,7 @@ class NewtonLog:
         return out
 
 
-def kinks_along(material, stress, state, d_strain, direction, s) -> dict[str, np.ndarray]:
+def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> dict[str, np.ndarray]:
     """The material's response along the straight path d_strain + s * direction, s in ``s`` (uniform).
 
     stress (N, 3, 3) and state: the committed start of the step; d_strain, direction (N, 3, 3): the
@@ -166,6 +172,7 @@ def kinks_along(material, stress, state, d_strain, direction, s) -> dict[str, np
     is smooth, of order 1 at a kink), at ``s_kink`` (the grid point between the two intervals). Where
     the state has ``loading`` (CPA), ``loading_before`` / ``loading_after`` count the loading planes on
     either side of the kink. Also ``rate`` (N,): the largest |d sigma / ds| [kPa per unit s].
+    ``inputs``: the material's other inputs, as the solver passes them (``step_fraction``).
     """
     s = np.asarray(s, dtype=float)
     if s.ndim != 1 or s.size < 3 or not np.allclose(np.diff(s), s[1] - s[0]) or s[1] <= s[0]:
@@ -174,7 +181,7 @@ def kinks_along(material, stress, state, d_strain, direction, s) -> dict[str, np
     sig, loading = [], []
     for si in s:
         copy = {k: np.array(v, copy=True) for k, v in state.items()}
-        out, st, _ = material.update(d_strain + si * direction, stress, copy)
+        out, st, _ = material.update(d_strain + si * direction, stress, copy, **inputs)
         sig.append(out.reshape(n, 9))
         if "loading" in st:
             loading.append(np.asarray(st["loading"]).sum(axis=1))
@@ -195,4 +202,29 @@ def solver_kinks_along(solver, du, ddu, s) -> dict[str, np.ndarray]:
     """:func:`kinks_along` for a :class:`femgran.solver.NewtonSolver` at the iterate du with Newton
     direction ddu (displacement vectors), from its committed stress and state."""
     d_strain, direction = solver.disc.strain(du), solver.disc.strain(ddu)  # the strain is linear in u
-    return kinks_along(solver.points.material, solver.points.stress, solver.points.state, d_strain, direction, s)
+    rate = {"step_fraction": solver.step_fraction} if getattr(solver.points.material, "rate_dependent", False) else {}
+    return kinks_along(solver.points.material, solver.points.stress, solver.points.state, d_strain, direction, s,
+                       **rate)
+
+
+def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2.0 ** -8)) -> dict[float, np.ndarray]:
+    """The stress change of a zero strain increment from the committed (stress, state), relative to each
+    point's largest stress component: (N,) for each step size in ``step_fractions`` (in nominal steps;
+    used only by a ``rate_dependent`` law). ``inputs``: the material's other inputs for a zero increment
+    (a coupled discretisation's ``point_inputs`` of a zero displacement, e.g. ``d_nonlocal`` = 0).
+
+    A law whose update is continuous at the committed state gives round-off for every size; a step
+    stabilisation with a relaxation time of the current step (instead of a fixed one) gives a drift that
+    does not shrink with the step (measured in ``docs/cpa_law.md``, section 4)."""
+    stress = np.asarray(stress, dtype=float)
+    n = stress.shape[0]
+    scale = np.maximum(np.abs(stress).max(axis=(1, 2)), 1e-300)
+    out = {}
+    for f in step_fractions:
+        extra = dict(inputs or {})
+        if getattr(material, "rate_dependent", False):
+            extra["step_fraction"] = float(f)
+        copy = {k: np.array(v, copy=True) for k, v in state.items()}
+        s, _, _ = material.update(np.zeros((n, 3, 3)), stress, copy, **extra)
+        out[float(f)] = np.abs(np.asarray(s) - stress).max(axis=(1, 2)) / scale
+    return out

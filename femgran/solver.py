@@ -414,6 +414,9 @@ class NewtonSolver:
         self._near_nullspace = None
         self.linear = None  # LinearSolver, made at the first solve
         self._last_increment = None  # (du, dt) of the last converged step, for the extrapolating predictor
+        # the step being solved, in units of the nominal step: the time input of rate-dependent laws
+        # (material.base; the CPA law's step stabilisation relaxes over one nominal step)
+        self.step_fraction = 1.0
 
     # ------------------------------------------------------------------ pieces
     def prescribed(self, t: float) -> np.ndarray:
@@ -429,7 +432,7 @@ class NewtonSolver:
     def _evaluate(self, du, t):
         """Material update for the trial increment du; residual r (ndofs,), failed mask."""
         de = self.disc.strain(du)
-        stress, tangent, failed = self.points.evaluate(de, **self.disc.point_inputs(du))
+        stress, tangent, failed = self.points.evaluate(de, **self._point_inputs(du))
         if failed.any():
             where = getattr(self.points.material, "replay_dir", None)
             hint = f" (their inputs: {where})" if where is not None else ""
@@ -438,6 +441,14 @@ class NewtonSolver:
         if not np.all(np.isfinite(r)):
             raise _StepFailure("residual not finite")
         return r, tangent
+
+    def _point_inputs(self, du) -> dict:
+        """The material's inputs besides the strain increment: the coupled field's increment
+        (``disc.point_inputs``) and, for a rate-dependent law, the step's size in nominal steps."""
+        inputs = self.disc.point_inputs(du)
+        if getattr(self.points.material, "rate_dependent", False):
+            inputs["step_fraction"] = self.step_fraction
+        return inputs
 
     def _norms(self, r, t):
         rf = np.linalg.norm(r[self.free])
@@ -484,7 +495,7 @@ class NewtonSolver:
         if self._committed_tangent is None:
             zero = np.zeros(self.disc.ndofs)
             _, self._committed_tangent, _ = self.points.evaluate(np.zeros((self.disc.n_points, 3, 3)),
-                                                                 **self.disc.point_inputs(zero))
+                                                                 **self._point_inputs(zero))
             self.points.revert()
         K = self.disc.stiffness(self._committed_tangent)
         r0 = self.disc.internal_force(self.points.stress, self._committed_tangent, self.u) - self.external(t_new)
@@ -716,6 +727,7 @@ class NewtonSolver:
         self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
         while position() < t_end * (1 - 1e-12):
             dt = min(dt, t_end - position())
+            self.step_fraction = dt / dt0
             t0 = time.perf_counter()
             try:
                 if control is None:

@@ -13,6 +13,10 @@ grows from 0 to d_eps; the algorithm only finds it. So the stress is a determini
 (d_eps, sigma_n, state_n), continuous in d_eps wherever the branch is, and nothing in it depends on how
 the global Newton got there. (Other solutions may exist away from the branch: measured at the apex,
 where Newton from the elastic trial landed on one of three different exact solutions of a point.)
+With the step stabilisation the floor of a plane over the fraction lam of a step of f nominal steps is
+floor0 / (lam f): it grows without bound as lam -> 0, so the branch starts at the committed state even
+when that state lies above the planes' curves (the overstress of earlier steps), and the update tends to
+the committed state as the step does.
 
 Unknowns and equations of the semismooth Newton method
 ------------------------------------------------------
@@ -100,7 +104,8 @@ Law = namedtuple("Law", [
 ])
 
 #: Options of the local solver.
-Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation"])
+#: ``step``: the size of this step in units of the run's nominal step (the step stabilisation's relaxation time).
+Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation", "step"])
 
 #: The data of one point's local problem (fixed during its solution except ``de``, the increment of the
 #: current fraction, and ``select``).
@@ -150,6 +155,7 @@ Work = namedtuple("Work", [
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
     "floor",                  # (M,) see Point
+    "floor0",                 # (M,) the floor of a nominal step, mu (w/t) G / sigma~ at sigma_n
     "post",                   # (M,) bool, see Point
     "J", "J8",                # condensed Newton matrix (7, 7), and (_NSYS, _NSYS) with the gradient's unknown
                               # (two contiguous arrays: the LU on a 7 x 7 view of the larger one was 2-3 % slower)
@@ -168,7 +174,8 @@ def make_workspace(M):
     return Work(np.empty((_NP, M)), np.empty((_NP, M)), np.empty((6, M)), np.empty((6, M)), np.empty((6, M)),
                 np.empty((6, M)), np.empty((7, M)), np.empty((3, M)), np.empty(M), np.empty(M), np.empty(M),
                 np.empty(M), np.empty(M), np.empty(M), np.empty(M),
-                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.zeros(M, dtype=np.bool_),
+                np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.zeros(M),
+                np.zeros(M, dtype=np.bool_),
                 np.empty((7, 7)), np.empty((_NSYS, _NSYS)), np.empty(_NSYS), np.empty(_NSYS),
                 np.empty(_NSYS, dtype=np.int64),
                 np.empty((12, 6)), np.empty((2, 6, 6)),
@@ -773,14 +780,16 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_ou
         dmax = max(dmax, abs(de[i]))
     r_scale = dmax + smax * law.comp[0, 0]
     de_lam = vecs[_V_DE]
-    # the step stabilisation's floor of each plane: mu times its elastic self-coupling (w/t) G / sigma~
+    # the step stabilisation's floor of each plane over a nominal step: mu times its elastic self-coupling
+    # (w/t) G / sigma~; over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
     g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
     for a in range(M):
         if opt.stabilisation > 0.0:
             sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
-            ws.floor[a] = opt.stabilisation * law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+            ws.floor0[a] = opt.stabilisation * law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
         else:
-            ws.floor[a] = 0.0
+            ws.floor0[a] = 0.0
+        ws.floor[a] = ws.floor0[a] / opt.step
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
                m_over)
     # follow the branch in the fraction lam of the increment, from the solution at lam = 0 (the start of
@@ -804,6 +813,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_ou
             sig[i] = sig_done[i]
         for a in range(M):
             dk[a] = dk_done[a] if strong[a] else 0.0
+            ws.floor[a] = ws.floor0[a] / (lam * opt.step)
         converged, its, dl, S = _newton(law, pd, opt, pt, sig, dk, dl_done, s_done, ws)
         total_its += its
         if converged:

@@ -34,6 +34,16 @@ coupled problem) take one more input and return a richer tangent::
 * ``tangent`` is then a :class:`CoupledTangent` of the five point quantities the coupled assembly needs.
   Without ``d_nonlocal`` the law is local (ebar = e, as in any homogeneous test) and the tangent is the
   ordinary (N, 3, 3, 3, 3) array.
+
+Rate-dependent laws (``material.rate_dependent`` true, e.g. the CPA law with its step stabilisation, a
+viscosity whose relaxation time is one nominal load step) also take the step's size::
+
+    stress, state, tangent = material.update(d_strain, stress, state, step_fraction=f)
+
+* ``f`` > 0: the step's size in units of the run's nominal step (the FE solver passes the load-factor
+  step over the nominal one; 1, the default, is a nominal step, as in the element drivers). A law whose
+  relaxation follows the step's size returns the committed state as f and d_strain tend to zero, so a
+  cut-back brings the step's problem back to the committed equilibrium.
 """
 
 from __future__ import annotations

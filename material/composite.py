@@ -114,9 +114,15 @@ class Composite:
                     state[key][idx] = state[f"{k}:{key}"][idx]
         return state
 
-    def update(self, d_strain, stress, state, d_nonlocal=None):
+    @property
+    def rate_dependent(self) -> bool:
+        """Any of the laws takes the step's size (``step_fraction``, :attr:`material.CPAModel.rate_dependent`)."""
+        return any(getattr(law, "rate_dependent", False) for law in self.laws)
+
+    def update(self, d_strain, stress, state, d_nonlocal=None, step_fraction: float = 1.0):
         """Each law on its points; ``d_nonlocal`` (gradient-enhanced laws, :mod:`material.base`) is split
-        the same way and the :class:`material.base.CoupledTangent` is merged field by field."""
+        the same way and the :class:`material.base.CoupledTangent` is merged field by field;
+        ``step_fraction`` goes to the :attr:`rate_dependent` laws."""
         de, s = check_batch(d_strain, stress)
         n = self._n(de.shape[0])
         new_stress = np.empty_like(s)
@@ -126,6 +132,8 @@ class Composite:
             prefix = f"{k}:"
             sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
             extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[idx]}
+            if getattr(law, "rate_dependent", False):
+                extra["step_fraction"] = step_fraction
             s_k, st_k, D_k = law.update(de[idx], s[idx], sub, **extra)
             new_stress[idx] = s_k
             if tangent is None:

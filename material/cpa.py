@@ -92,11 +92,17 @@ class CPAModel:
         Convergence of the local solver: |R| <= tol (|d_eps| + |sigma_n| / E) and every
         complementarity residual <= tol (dimensionless).
     stabilisation : float
-        mu >= 0: the step equation of a loading plane is etah = eta(kappa_n + dkappa) + mu dkappa / A, a
-        hardening of at least mu / A within the step (``docs/cpa_law.md``, section 4). The overstress it
-        allows is of the order of the step's slip, so it vanishes as the steps are refined; it makes
-        the step's complementarity problem uniquely solvable where the coupling of non-associated
-        planes near failure has no unique rate solution. 0 (the default) solves the thesis's law.
+        mu in [0, 1]: a Perzyna-type viscosity whose relaxation time is one nominal load step. The step
+        equation of a loading plane is etah = eta(kappa_n + dkappa) + h_a dkappa / f, with the floor
+        h_a = mu (w_a / t) G / sigma~_a (mu times the plane's elastic self-coupling at sigma_n) and f the
+        step's size in nominal steps (``step_fraction`` of :meth:`update`; 1 by default and in the element
+        drivers): a hardening of at least h_a / f within the step (``docs/cpa_law.md``, section 4). It
+        makes the step's complementarity problem uniquely solvable where the coupling of non-associated
+        planes near failure has no unique rate solution. The overstress it allows is of the order of the
+        slip of one nominal step, so it vanishes as the nominal steps are refined; a shorter step (a
+        cut-back) relaxes the overstress a longer one left only in proportion to its length, so the
+        update tends to the committed state as the step tends to zero. 0 (the default) solves the
+        thesis's law.
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -306,7 +312,13 @@ class CPAModel:
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
     # ----------------------------------------------------------------------------- update
-    def update(self, d_strain, stress, state: State, *, tangent: bool | str = True, d_nonlocal=None):
+    @property
+    def rate_dependent(self) -> bool:
+        """True with the step stabilisation: :meth:`update` then takes the step's size (``step_fraction``)."""
+        return self.options.stabilisation > 0.0
+
+    def update(self, d_strain, stress, state: State, *, tangent: bool | str = True, d_nonlocal=None,
+               step_fraction: float = 1.0):
         """Integrate the law over a strain increment at N Gauss points.
 
         Parameters
@@ -323,6 +335,11 @@ class CPAModel:
             (the FE solver passes it, :mod:`femgran.gradient`); the tangent is then a
             :class:`material.base.CoupledTangent` and ``state["nonlocal"]`` the end-of-step ebar. Without
             it the law is local (ebar = e, a homogeneous test) and ``state["nonlocal"]`` follows e.
+        step_fraction : float > 0
+            The step's size in units of the run's nominal load step (the FE solver passes it to a
+            :attr:`rate_dependent` law; 1 in the element drivers, whose every step is nominal): the step
+            stabilisation's relaxation time is one nominal step. Without the stabilisation it changes
+            nothing.
 
         Returns
         -------
@@ -377,8 +394,12 @@ class CPAModel:
         reached = np.empty(n)
         opening = np.empty(n)
         mobilised = np.empty(n)
+        f = float(step_fraction) if np.ndim(step_fraction) == 0 else np.nan
+        if not (np.isfinite(f) and f > 0.0):
+            raise ValueError(f"step_fraction = {step_fraction!r}: allowed a finite number > 0 (the step's size in "
+                             f"nominal steps)")
         o = self.options
-        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent), o.stabilisation)
+        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent), o.stabilisation, f)
         prev_threads = None
         if self.threads is not None:
             import numba
@@ -418,7 +439,7 @@ class CPAModel:
         if "element_size" in state:
             new_state["element_size"] = state["element_size"]
         if failed.any():
-            self._record_failure(de, sig, state, np.flatnonzero(failed), d_nonlocal)
+            self._record_failure(de, sig, state, np.flatnonzero(failed), d_nonlocal, f)
         tan = (D if tangent == "mandel" else _k.tangent_from_mandel(D)) if tangent else None
         if not gradient:
             return new_sig, new_state, tan
@@ -441,13 +462,14 @@ class CPAModel:
         return np.where(post, kappa - kstar, 0.0).sum(axis=1) / self.params.t
 
     # ----------------------------------------------------------------------------- replay
-    def _record_failure(self, de, sig, state, idx, d_nonlocal=None) -> None:
+    def _record_failure(self, de, sig, state, idx, d_nonlocal=None, step_fraction: float = 1.0) -> None:
         import json
 
         record = {
             "d_strain": de[idx],
             "stress": sig[idx],
             "point_index": idx,
+            "step_fraction": np.array(step_fraction),
             "params_json": np.array(json.dumps(self.params.to_dict())),
             "rule": np.array(self.rule),
             "axes": self.axes,
@@ -497,6 +519,8 @@ def replay(path, **model_options):
     model = CPAModel(params, rule=str(data["rule"]), axes=data["axes"], **options)
     state = {k[len("state__"):]: v for k, v in data.items() if k.startswith("state__")}
     extra = {"d_nonlocal": data["d_nonlocal"]} if "d_nonlocal" in data and model._nonlocal_length is not None else {}
+    if "step_fraction" in data:  # files of older versions: a nominal step
+        extra["step_fraction"] = float(data["step_fraction"])
     stress, new_state, tangent = model.update(data["d_strain"], data["stress"], state, **extra)
     return model, stress, new_state, tangent
 

@@ -219,8 +219,8 @@ def _newton(law, x, args, scale, tol, maxit):
     return False, x
 
 
-def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=None, tol: float = 1e-11,
-                 maxit: int = 40, max_halvings: int = 12):
+def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=None, step_fraction: float = 1.0,
+                 tol: float = 1e-11, maxit: int = 40, max_halvings: int = 12):
     """One point's update by the reference algorithm.
 
     Parameters
@@ -230,6 +230,8 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     state : the state dict of ``model`` (batch), read at ``point``.
     d_nonlocal : None or (N,) the increment of the nonlocal field ebar (a model with a ``nonlocal_length``):
         the gradient-enhanced update (``docs/regularisation.md``, section 3).
+    step_fraction : the step's size in nominal steps: the step stabilisation's floor is mu_a / step_fraction,
+        and over the fraction lam of the increment mu_a / (lam step_fraction).
 
     Returns
     -------
@@ -256,7 +258,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
         ebar = float(np.asarray(state["nonlocal"])[point] + np.asarray(d_nonlocal, float).reshape(-1)[point])
         m = model.over_nonlocal
         grad = (post, m * p.t * (ebar - e_n), m) if post.size else None
-    # the step stabilisation's floor of each plane: mu (w/t) G / sigma~ at sigma_n
+    # the step stabilisation's floor of each plane over a nominal step: mu (w/t) G / sigma~ at sigma_n
     st_n = law.planes(sig_n, law.eta_f(eps_n + _sym(_six(np.asarray(d_strain, float).reshape(-1, 3, 3)[point]))))[1]
     mu = model.options.stabilisation * law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)
     ns = strong.size
@@ -286,8 +288,8 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     lam_done, h, halvings = 0.0, 1.0, 0
     while lam_done < 1.0:
         lam = min(1.0, lam_done + h)
-        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong, mu, grad), scale, tol,
-                        maxit)
+        ok, x = _newton(law, x_done.copy(), (sig_n, lam * de6, eps_n, kap_n, soft, strong,
+                                             mu / (lam * step_fraction), grad), scale, tol, maxit)
         if ok:
             lam_done, x_done, h = lam, x, min(2 * h, 1.0)
         else:
@@ -295,7 +297,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
             halvings += 1
             if halvings > max_halvings:
                 raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
-    args = (sig_n, de6, eps_n, kap_n, soft, strong, mu, grad)
+    args = (sig_n, de6, eps_n, kap_n, soft, strong, mu / step_fraction, grad)
     F, dk = residual(law, x_done, *args)
     J = _jacobian(law, x_done, args, scale)
     # d F / d d_eps by the complex step on the increment (tensor components, shear counted once)
@@ -303,8 +305,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     for j in range(6):
         dc = de6.astype(complex)
         dc[j] += 1j * _H
-        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, eps_n, kap_n, soft, strong, mu, grad)[0].imag \
-            / _H * scale
+        Fe[:, j] = residual(law, x_done.astype(complex), sig_n, dc, *args[2:])[0].imag / _H * scale
     dxde = -np.linalg.solve(J, Fe)  # d x / d d_eps_kl with d_eps_kl and d_eps_lk moved together
     tangent = _tensor4(dxde[:6])
     stress, kappa, dl = _sym(x_done[:6]), kap_n + np.maximum(dk.real, 0.0), x_done[6 + ns]

@@ -51,13 +51,19 @@ class Undrained:
         state["pore_pressure_kPa"] = np.zeros(int(n_points))
         return state
 
-    def update(self, d_strain, stress, state):
+    @property
+    def rate_dependent(self) -> bool:
+        """The wrapped law takes the step's size (``step_fraction``, :attr:`material.CPAModel.rate_dependent`)."""
+        return bool(getattr(self.law, "rate_dependent", False))
+
+    def update(self, d_strain, stress, state, step_fraction: float = 1.0):
         de, sig = check_batch(d_strain, stress)
         u_n = np.asarray(state["pore_pressure_kPa"], dtype=float)
         eye = np.eye(3)
         effective = sig + u_n[:, None, None] * eye
         inner = {k: v for k, v in state.items() if k != "pore_pressure_kPa"}
-        s_eff, new, tangent = self.law.update(de, effective, inner)
+        extra = {"step_fraction": step_fraction} if self.rate_dependent else {}
+        s_eff, new, tangent = self.law.update(de, effective, inner, **extra)
         u = u_n - self.bulk_modulus * np.trace(de, axis1=1, axis2=2)
         new = dict(new)
         new["pore_pressure_kPa"] = u

@@ -169,6 +169,21 @@ def case_record(case) -> dict:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in dataclasses.asdict(case).items()}
 
 
+def build_problem(case, material=None, out_dir=None) -> Problem:
+    """The case's :class:`Problem` for ``material`` (anything :func:`material.factory.make_material` takes),
+    with the case's drainage; failed points write their replay files under ``out_dir`` (None: nowhere)."""
+    from femgran.cases.common import keep_failed_points
+    from material.factory import make_material
+
+    mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain)
+    problem = case.build(mat if out_dir is None else keep_failed_points(mat, out_dir))
+    if getattr(case, "drainage", "drained") == "undrained":
+        from material.undrained import Undrained
+
+        problem.material = Undrained(problem.material, case.pore_bulk_modulus_kPa)
+    return problem
+
+
 def run(case, material=None, *, solver=None, output: Output | None = None, resume: bool | str | Path = False,
         max_steps: int | None = None):
     """Run ``case`` with ``material`` (anything :func:`material.factory.make_material` takes), the solver
@@ -184,21 +199,16 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     replay of a failed step). ``max_steps``: stop after that many converged steps.
     """
     from femgran import checkpoint as ck
-    from femgran.cases.common import keep_failed_points, material_record, newton_log, run_folder, solver_options
+    from femgran.cases.common import material_record, newton_log, run_folder, solver_options
     from femgran.solver import NewtonSolver
-    from material.factory import make_material
     from material.table import jsonable
 
     output = Output() if output is None else output
     options = solver_options(solver)
     out_dir = run_folder(output.out)
-    mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain)
-    problem = case.build(keep_failed_points(mat, out_dir))
+    problem = build_problem(case, material, out_dir)
     observers = [] if problem.observe is None else [problem.observe]
     if getattr(case, "drainage", "drained") == "undrained":
-        from material.undrained import Undrained
-
-        problem.material = Undrained(problem.material, case.pore_bulk_modulus_kPa)
         weights = problem.disc.dx.ravel()
         observers.append(lambda s: {"pore_pressure_kPa": float(np.average(s.points.state["pore_pressure_kPa"],
                                                                            weights=weights))})

@@ -247,12 +247,33 @@ def _replay(args) -> int:
         print(f"  step {step} try {attempt} (load factor {log['load_factor'][rows][0]:.6g}): residuals {seq}; "
               f"most failed points {int(np.nanmax(log['failed_points'][rows]))}, most switching points "
               f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
+    _print_zero_step_drift(case, material, last)
     replays = sorted((dest / "failed_points").glob("*.npz"))
     print(f"  {len(replays)} replay file(s) of failed points in {dest / 'failed_points'} (material.cpa.replay)"
           if replays else "  no material point failed")
     write_run_record(dest, args, replayed_from=str(folder), checkpoint_step=info["n_step"],
                      completed=sol.completed, stop_reason=sol.stop_reason, failed_point_files=[p.name for p in replays])
     return 0
+
+
+def _print_zero_step_drift(case, material, checkpoint) -> None:
+    """How far the material moves the checkpoint's committed stress for a zero strain increment, over a
+    nominal step and over the smallest step the cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`)."""
+    from femgran import checkpoint as ck
+    from femgran.cases.base import build_problem
+    from femgran.diagnostics import zero_step_drift
+
+    arrays = ck.load(checkpoint)[0]
+    problem = build_problem(case, material)
+    state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
+    inputs = problem.disc.point_inputs(np.zeros(problem.disc.ndofs))
+    for f, rel in zero_step_drift(problem.material, arrays["stress"], state, inputs).items():
+        moved = rel > 1e-9
+        print(f"  a zero strain increment over {f:g} nominal step(s) moves {int(moved.sum())} of {rel.size} points' "
+              f"stress, by up to {rel.max():.2g} of their largest component"
+              + ("" if f == 1.0 or not moved.any() else
+                 " (the committed state is not the step problem's solution as the step vanishes: cut-backs cannot "
+                 "reach an equilibrium next to it)"))
 
 
 def register(subparsers) -> None:

@@ -154,6 +154,33 @@ def test_cutback_recovers_from_a_too_large_step():
     assert abs(r_cut - r_fine) < 0.02 * abs(r_fine)
 
 
+class _RateRecorder(_StepLimited):
+    """Test double: a rate-dependent law (``rate_dependent``) that records the step size it is given."""
+
+    rate_dependent = True
+
+    def __init__(self, inner, limit):
+        super().__init__(inner, limit)
+        self.fractions = []
+
+    def update(self, d_strain, stress, state, step_fraction=1.0):
+        self.fractions.append(step_fraction)
+        return super().update(d_strain, stress, state)
+
+
+def test_a_rate_dependent_law_gets_the_step_size_in_nominal_steps():
+    """The solver passes a rate-dependent law each step's size over the nominal step: 1 for the nominal
+    steps, less after a cut-back (the CPA law's step stabilisation relaxes over one nominal step); a law
+    that is not rate dependent gets no such input (the element drivers' laws)."""
+    d, bcs = _plastic_cube()
+    law = _RateRecorder(material.VonMises(1e4, 0.3, 20.0, 200.0), 2e-3)
+    sol = NewtonSolver(d, law, bcs).run(4)
+    assert sol.completed and sol.history["cutbacks"].max() >= 1
+    f = np.array(law.fractions)
+    assert f.max() == 1.0 and 0.0 < f.min() <= 0.5 and set(np.round(f, 12)) > {1.0}
+    assert NewtonSolver(d, _StepLimited(law.inner, 1.0), bcs).run(2).completed  # no step_fraction keyword
+
+
 def test_clean_stop_keeps_the_converged_steps(tmp_path):
     d, bcs = _plastic_cube()
     vm = material.VonMises(1e4, 0.3, 20.0, 200.0)
@@ -416,3 +443,25 @@ def test_kinks_along_finds_where_a_point_starts_to_yield():
     ddu[solver.constrained] = solver.prescribed(1.0)  # the boundary displacements alone: the cube yields
     probe = solver_kinks_along(solver, np.zeros(d.ndofs), ddu, np.linspace(0, 1, 21))
     assert probe["slope_jump"].shape == (d.n_points,) and (probe["slope_jump"] > 0.5).any()
+
+
+def test_zero_step_drift_shows_whether_a_cut_back_can_reach_the_committed_state():
+    """The stabilised CPA law, loaded in nominal steps near failure, relaxes its overstress over a nominal
+    step with no strain, and by an amount proportional to a shorter step; the thesis's law returns the
+    committed stress to round-off."""
+    from femgran.diagnostics import zero_step_drift
+    from material.anisotropy import axes_from_alpha
+
+    de = np.array([[0.8e-3, 1e-4, 2e-4], [1e-4, 0.6e-3, -1.5e-4], [2e-4, -1.5e-4, -2e-3]])
+    drift = {}
+    for mu in (0.1, 0.0):
+        law = material.CPAModel("ottawa_c109", axes=axes_from_alpha(30.0), stabilisation=mu)
+        sig = np.repeat(-100.0 * np.eye(3)[None], 2, axis=0)
+        st = law.initial_state(2, stress=sig)
+        for _ in range(25):
+            sig, st, _ = law.update(np.repeat(de[None], 2, axis=0), sig, st, tangent=False)
+        drift[mu] = zero_step_drift(law, sig, st, step_fractions=(1.0, 2.0 ** -8, 2.0 ** -16))
+    assert drift[0.1][1.0].min() > 1e-4
+    ratio = drift[0.1][2.0 ** -16] / drift[0.1][2.0 ** -8]
+    assert (0.5 * 2.0 ** -8 < ratio).all() and (ratio < 2 * 2.0 ** -8).all()  # proportional to the step
+    assert max(d.max() for d in drift[0.0].values()) < 1e-12

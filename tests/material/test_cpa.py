@@ -325,6 +325,39 @@ def test_step_stabilisation_integrates_the_near_failure_point_and_vanishes_with_
     assert 0 < e100 < 0.2 * e10, (e10, e100)
 
 
+def test_step_stabilisation_relaxes_in_proportion_to_the_step_so_the_update_is_continuous_at_zero():
+    """The stabilisation is a viscosity with a relaxation time of one nominal step: a point loaded in
+    nominal steps carries an overstress; a step with no strain relaxes it by a finite amount over a nominal
+    step, and by an amount proportional to the step's size as the step shrinks (continuity at zero: a
+    cut-back brings the step back to the committed equilibrium). Kernel and reference agree at any size;
+    the size is validated."""
+    model = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0), stabilisation=0.1)
+    sig, st = _loaded(model, 25)
+    assert st["mobilised_ratio"][0] > 0.8
+    change = {}
+    for f in (1.0, 1e-3, 1e-6):
+        s, st2, _ = model.update(np.zeros((1, 3, 3)), sig, st, step_fraction=f)
+        assert st2["status"][0] == STATUS_OK
+        change[f] = np.abs(s - sig).max()
+    assert change[1.0] > 0.01  # kPa: the overstress of a nominal step relaxes
+    assert change[1e-6] < 1e-4 * change[1.0]
+    assert 0.5e-3 < change[1e-6] / change[1e-3] < 2e-3  # proportional to the step's size
+    for f in (0.25, 1.0):
+        s, st2, D = model.update(0.5 * DE[None], sig, st, step_fraction=f)
+        s_ref, kappa_ref, _, D_ref = update_point(model, 0.5 * DE, sig, st, step_fraction=f)
+        assert np.abs(s[0] - s_ref).max() <= 1e-10 * np.abs(s_ref).max()
+        assert np.abs(D[0] - D_ref).max() <= 1e-9 * np.abs(D_ref).max()
+    # without the stabilisation the step's size changes nothing
+    plain = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0))
+    sig, st = _loaded(plain, 25)
+    a = plain.update(0.5 * DE[None], sig, st, step_fraction=0.01)[0]
+    assert np.array_equal(a, plain.update(0.5 * DE[None], sig, st)[0]) and not plain.rate_dependent
+    assert model.rate_dependent
+    for bad in (0.0, -1.0, np.nan, np.ones(2)):
+        with pytest.raises(ValueError, match="step_fraction = .*: allowed a finite number > 0"):
+            model.update(DE[None], sig, st, step_fraction=bad)
+
+
 def _rotation(theta, axis):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
