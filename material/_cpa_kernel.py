@@ -16,14 +16,15 @@ from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_out, kap_out, D_out, loading, grad_out,
-              status, iterations, halvings, reached, opening, mobilised):
+def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
+              grad_out, status, iterations, halvings, reached, opening, mobilised):
     """Update N Gauss points (Mandel vectors), in parallel over chunks of points.
 
     Inputs: ``law`` (:class:`material._cpa_local.Law`), ``opt`` (:class:`material._cpa_local.Options`),
     sig_n, de, eps_n (N, 6) stress, strain increment, total strain at the start; kap_n (N, M) slips;
-    soft (N,) softening slip scale of each point (0: none); c0 (N,) and m_over: the implicit gradient's
-    shift of the slip of the planes past their peak and its m (0: no gradient).
+    soft (N,) softening slip scale of each point (0: none); c0 (N,), m_over and nl_shift (N, M): the implicit
+    gradient's shift of the slip of the planes past their peak in this step, its m (0: no gradient) and the
+    shift each plane has accumulated.
     Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6) (untouched without ``opt.tangent``),
     loading (N, M) bool, grad_out (N, 14) the gradient's S and derivatives
     (:func:`material._cpa_local.point_update`), status (N,) int8, iterations and halvings (N,) int32,
@@ -39,8 +40,8 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_out, kap_
         pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
             st, its, hv, lam, dl, best = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
-                                                      c0[p], m_over, sig_out[p], kap_out[p], D_out[p], loading[p],
-                                                      grad_out[p], ws)
+                                                      c0[p], m_over, nl_shift[p], sig_out[p], kap_out[p], D_out[p],
+                                                      loading[p], grad_out[p], ws)
             status[p] = st
             iterations[p] = its
             halvings[p] = hv

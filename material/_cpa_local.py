@@ -119,7 +119,8 @@ Point = namedtuple("Point", [
     "r_scale",               # strain scale of the residual
     "post",                  # (M,) bool: past its softening peak at the start, coupled by the gradient
     "coupled",               # any post: the gradient's unknown S and its equation are in the system
-    "c0", "m_over",          # the gradient's shift m t (ebar - e_n) [m] and its m (implicit gradient)
+    "c0", "m_over",          # the gradient's shift m t d_ebar [m] of the step and its m (implicit gradient)
+    "nl_shift",              # (M,) the shift kappa_hat - kappa a plane past its peak has accumulated [m]
 ])
 
 #: Per-plane constants of the law in plane-major (structure-of-arrays) layout, made with each thread's
@@ -288,7 +289,7 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
     or past its barrier (without stabilisation), or a strong plane's kappa <= -A/2.
 
     The implicit gradient (``pt.coupled``; ``docs/regularisation.md``, section 3): a plane past its peak
-    softens with kappa_hat = kappa_n + dkappa + c0 - m S, S = sum of the slip increments of those planes,
+    softens with kappa_hat = kappa_n + nl_shift_a + dkappa + c0 - m S, S = sum of the slip increments of those planes,
     with the equation g_S = S - sum dkappa = 0. Its slip's linearisation gains gamma_a dS, and S is the
     eighth unknown of the condensed system.
 
@@ -362,7 +363,8 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
                 return False, np.inf, np.inf, np.inf, np.inf
             coupled = pt.coupled and pt.post[a]
             if coupled:  # the gradient's shift, on the (continued) softening branch
-                eta, deta = softening_branch(k + pt.c0 - pt.m_over * S, ef, law.kstar, pt.soft, law.residual)
+                eta, deta = softening_branch(k + pt.nl_shift[a] + pt.c0 - pt.m_over * S, ef, law.kstar, pt.soft,
+                                             law.residual)
             else:
                 eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
             phi, (pu, pv) = _fb(dk[a] / A, eta + h * dk[a] - ratio, pt.select[a])
@@ -561,15 +563,15 @@ def _ratios(law, sig, shift, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _is_elastic(law, trial, kap_n, soft, eta_f, shift, post, c0):
+def _is_elastic(law, trial, kap_n, soft, eta_f, shift, post, c0, nl_shift):
     """The elastic trial is the solution: no mean tension, no plane above its reached level (stops at the
     first plane that loads; a plane ``post`` past its peak under the implicit gradient has its level at the
-    shifted slip kappa_n + c0)."""
+    shifted slip kappa_n + nl_shift + c0)."""
     if trial[0] + trial[1] + trial[2] > 0.0:
         return False
     for a in range(kap_n.shape[0]):
         sigma_t, tau, T, _, _, _ = plane_stress(trial, law.normals[a], shift[a], law.rounding)
-        eta = _level(law, kap_n[a], eta_f[a], soft, post[a], c0)[0]
+        eta = _level(law, kap_n[a], eta_f[a], soft, post[a], nl_shift[a] + c0)[0]
         if not (sigma_t > 0.0 and T <= sigma_t * eta):
             return False
     return True
@@ -656,7 +658,8 @@ def _rate_active_set(law, pt, ws):
         sigma_t, tau, T, ts0, ts1, ts2 = plane_stress(sig, law.normals[a], pt.shift[a], law.rounding)
         plane_directions(law.normals[a], ts0, ts1, ts2, tau, sn6, rn6)
         ratio = T / sigma_t
-        eta, deta = _level(law, pt.kap_n[a], pt.eta_f[a], pt.soft, pt.coupled and pt.post[a], pt.c0)
+        eta, deta = _level(law, pt.kap_n[a], pt.eta_f[a], pt.soft, pt.coupled and pt.post[a],
+                           pt.nl_shift[a] + pt.c0)
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
@@ -719,12 +722,13 @@ def _rate_active_set(law, pt, ws):
 
 
 @njit(cache=True, error_model="numpy")
-def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_out, kap_out, D_out, loading,
-                 grad_out, ws):
+def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
+                 loading, grad_out, ws):
     """Integrate one Gauss point (Mandel vectors; see the module docstring for the algorithm).
 
-    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`. ``c0`` and ``m_over``:
-    the implicit gradient's shift m t (ebar - e_n) [m] and m (``m_over`` = 0: no gradient).
+    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`. ``c0``, ``m_over`` and
+    ``nl_shift`` (M,): the implicit gradient's shift m t d_ebar [m] of this step, m (``m_over`` = 0: no
+    gradient) and the shift each plane past its peak has accumulated (its kappa_hat - kappa at the start).
     Outputs: sig_out (6,), kap_out (M,), D_out (6, 6) d sigma / d d_eps (if ``opt.tangent``), loading (M,)
     bool (planes whose slip grows), grad_out (14,): S, d S / d d_eps (6), d sigma / d c0 (6), d S / d c0
     (S the sum of the slip increments of the planes past their peak; zeros without the gradient, the
@@ -757,7 +761,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_ou
         for j in range(6):
             acc += law.stiff[i, j] * de[j]
         sig[i] = acc
-    if _is_elastic(law, sig, kap_n, soft, eta_f, shift, post, c0):
+    if _is_elastic(law, sig, kap_n, soft, eta_f, shift, post, c0, nl_shift):
         ratios = ws.dk_try  # scratch
         _ratios(law, sig, shift, ratios)
         best = 0.0
@@ -791,7 +795,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_ou
             ws.floor0[a] = 0.0
         ws.floor[a] = ws.floor0[a] / opt.step
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
-               m_over)
+               m_over, nl_shift)
     # follow the branch in the fraction lam of the increment, from the solution at lam = 0 (the start of
     # the step); Newton's first step from a solution is the tangent predictor of the next fraction
     sig_done = vecs[_V_SIG_DONE]
@@ -828,7 +832,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, sig_ou
         elif lam_done == 0.0 and not rate_solved:
             # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
             _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale,
-                                        post, coupled, c0, m_over), ws)
+                                        post, coupled, c0, m_over, nl_shift), ws)
             rate_solved = True
         else:
             h *= 0.5

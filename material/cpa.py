@@ -298,7 +298,8 @@ class CPAModel:
             "mobilised_ratio": np.zeros(n),
             "near_apex": np.abs(sig).max(axis=(1, 2)) <= 10.0 * self.params.apex_stress,
             "element_size": h,
-            **({} if self._nonlocal_length is None else {"nonlocal": np.zeros(n)}),
+            **({} if self._nonlocal_length is None else {"nonlocal": np.zeros(n), "post_peak_strain": np.zeros(n),
+                                                          "nonlocal_shift": np.zeros((n, M))}),
         }
 
     def _softening_scale(self, state: State, n: int) -> np.ndarray:
@@ -372,18 +373,23 @@ class CPAModel:
         if d_nonlocal is not None and not gradient:
             raise ValueError("d_nonlocal: this CPA law has no nonlocal_length (no gradient regularisation)")
         c0, m_over = np.zeros(n), 0.0
+        shift_n = np.zeros((n, M))
         if gradient:
             check_state(state, n, ("nonlocal",))
-            e_n = self._post_peak_strain(kap_n, kap_n)
+            e_n = np.asarray(state["post_peak_strain"], dtype=float) if "post_peak_strain" in state else \
+                self._post_peak_strain(kap_n, kap_n)  # (a state of an older version)
+            if "nonlocal_shift" in state:
+                shift_n = np.ascontiguousarray(state["nonlocal_shift"], dtype=float)
+                if shift_n.shape != (n, M):
+                    raise ValueError(f"state['nonlocal_shift']: shape {shift_n.shape} does not match ({n}, {M})")
             if d_nonlocal is not None:
                 dnl = np.asarray(d_nonlocal, dtype=float)
                 if dnl.shape != (n,) or not np.all(np.isfinite(dnl)):
                     raise ValueError(f"d_nonlocal: expected a finite array of shape ({n},), got {dnl.shape}")
                 if tangent == "mandel":
                     raise ValueError("tangent = 'mandel': the coupled tangent of d_nonlocal comes in tensor form")
-                ebar = np.asarray(state["nonlocal"], dtype=float) + dnl
                 m_over = self.over_nonlocal
-                c0 = m_over * p.t * (ebar - e_n)  # the shift of the slip of every plane past its peak
+                c0 = m_over * p.t * dnl  # this step's shift of the slip of every plane past its peak
         sig_out = np.empty_like(sig6)
         kap_out = np.empty_like(kap_n)
         D = np.empty((n, 6, 6))
@@ -408,8 +414,9 @@ class CPAModel:
             numba.set_num_threads(int(self.threads))
         grad_out = np.empty((n, 14))
         try:
-            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), c0, m_over, sig_out,
-                         kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening, mobilised)
+            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), c0, m_over, shift_n,
+                         sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
+                         mobilised)
         finally:
             if prev_threads is not None:
                 import numba
@@ -443,20 +450,29 @@ class CPAModel:
         tan = (D if tangent == "mandel" else _k.tangent_from_mandel(D)) if tangent else None
         if not gradient:
             return new_sig, new_state, tan
+        # the local measure e grows by S / t, S the slip increments of the planes past their peak at the start
+        # (a plane that passes its peak within a step counts from the next step on: e is continuous in time)
+        post = (kap_n >= p.kappa_instability) & (self._softening_scale(state, n) > 0)[:, None]
+        S = np.where(post, kap_out - kap_n, 0.0).sum(axis=1)
+        new_state["post_peak_strain"] = e_n + S / p.t
         if d_nonlocal is None:  # the local law: the field follows the point's own post-peak slip strain
-            new_state["nonlocal"] = self._post_peak_strain(kap_out, kap_n)
+            new_state["nonlocal"] = new_state["post_peak_strain"].copy()
+            new_state["nonlocal_shift"] = shift_n
             return new_sig, new_state, tan
         new_state["nonlocal"] = np.asarray(state["nonlocal"], dtype=float) + dnl
+        # the shift kappa_hat - kappa of those planes grows by c0 - m S = m t (d_ebar - d_e); a plane that passed
+        # its peak in this step starts from 0 in the next (its kappa_hat is then kappa: continuous)
+        new_state["nonlocal_shift"] = np.where(post & ok[:, None], shift_n + (c0 - m_over * S)[:, None], shift_n)
         # grad_out: S (the sum of the slip increments of the planes past their peak), d S / d d_eps (Mandel),
-        # d sigma / d c0 (Mandel), d S / d c0; with c0 = m t (ebar - e_n) and e = e_n + S / t
+        # d sigma / d c0 (Mandel), d S / d c0; with c0 = m t d_ebar and e = e_n + S / t
         scale = m_over * p.t  # d c0 / d ebar
         return new_sig, new_state, CoupledTangent(
             tan, _k.from_mandel(np.ascontiguousarray(grad_out[:, 7:13] * scale)), e_n + grad_out[:, 0] / p.t,
             _k.from_mandel(np.ascontiguousarray(grad_out[:, 1:7] / p.t)), grad_out[:, 13] * m_over)
 
     def _post_peak_strain(self, kappa, kappa_n) -> np.ndarray:
-        """e = sum of kappa_a - kappa* over the planes past their peak at the start of the step (``kappa_n``),
-        divided by t: the point's post-peak slip strain, the local measure of the gradient (N,)."""
+        """sum of kappa_a - kappa* over the planes past their peak at ``kappa_n``, divided by t (N,): the local
+        measure e of a state written before e was a state variable ("post_peak_strain")."""
         kstar = self.params.kappa_instability
         post = kappa_n >= kstar
         return np.where(post, kappa - kstar, 0.0).sum(axis=1) / self.params.t

@@ -127,8 +127,9 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None, grad
     """F(x) and the slips of all planes for the unknowns x (see the module docstring); ``mu`` (M,) the
     step stabilisation's hardening floor of each plane [1/m] (None: none); ``grad`` = (post, c0, m) for
     the implicit gradient: the strong planes ``post`` (indices into ``strong``) past their softening peak
-    soften with kappa + c0 - m S on the softening branch (continued below the peak), S = x[-1] the sum of their slip
-    increments (its equation last)."""
+    soften with kappa + c0 - m S on the softening branch (continued below the peak), c0 (per post plane) their
+    accumulated shift plus this step's m t d_ebar, S = x[-1] the sum of their slip increments (its equation
+    last)."""
     p = law.p
     mu = np.zeros(len(kap_n)) if mu is None else mu
     ns = strong.size
@@ -254,10 +255,13 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     grad, e_n = None, 0.0
     if gradient:
         post = np.flatnonzero((soft > 0) & (kap_n[strong] >= p.kappa_instability))
-        e_n = float(np.sum(kap_n[strong][post] - p.kappa_instability)) / p.t
-        ebar = float(np.asarray(state["nonlocal"])[point] + np.asarray(d_nonlocal, float).reshape(-1)[point])
+        e_n = float(np.asarray(state["post_peak_strain"], float)[point]) if "post_peak_strain" in state else \
+            float(np.sum(kap_n[strong][post] - p.kappa_instability)) / p.t
+        d_ebar = float(np.asarray(d_nonlocal, float).reshape(-1)[point])
+        shift_n = np.asarray(state.get("nonlocal_shift", np.zeros_like(state["kappa"])), float)[point]
         m = model.over_nonlocal
-        grad = (post, m * p.t * (ebar - e_n), m) if post.size else None
+        # kappa_hat - kappa of each plane past its peak: its accumulated shift plus m t d_ebar - m S
+        grad = (post, shift_n[strong][post] + m * p.t * d_ebar, m) if post.size else None
     # the step stabilisation's floor of each plane over a nominal step: mu (w/t) G / sigma~ at sigma_n
     st_n = law.planes(sig_n, law.eta_f(eps_n + _sym(_six(np.asarray(d_strain, float).reshape(-1, 3, 3)[point]))))[1]
     mu = model.options.stabilisation * law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)

@@ -256,7 +256,7 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
     induced_tensor(eps_n + de, law.beta, law.alpha_hat, law.beta_hat, lam6)
     plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
     pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
-                 ws.select, ws.floor, 1.0, ws.post, False, 0.0, 0.0)
+                 ws.select, ws.floor, 1.0, ws.post, False, 0.0, 0.0, np.zeros(M))
     assert L._rate_active_set(law, pt, ws)
     chosen = {int(a) for a in np.flatnonzero(ws.select)}
     # the rate problem by the reference: b_a = d etah_a / d sigma (complex step), m_a, q and H
