@@ -46,7 +46,8 @@ def _setups(which: str, resolution: int | None, steps: int | None):
             "gradient": make_material(params, alpha_deg=0.0, plane_strain=True, stabilisation=0.1,
                                       nonlocal_length=0.006)}
     return laws, Biaxial(p0_kPa=100.0, axial_strain=0.042, steps=steps or 168, resolution=resolution or 12,
-                         imperfection=0.0, weak_zone=0.1, weak_zone_height=0.01, platens="rough")
+                         imperfection=0.0, weak_zone=0.1, weak_zone_height=1.0 / 12.0, weak_zone_size=1.0 / 3.0,
+                         platens="rough")  # the set-up of examples/fe_04_biaxial_meshes.py
 
 
 def main(argv=None) -> float:
