@@ -3,7 +3,8 @@
 CPA ``ottawa_c109`` with the post-peak softening switched on (zeta = 1.05: a plane reaches eta_f at
 kappa* = A / (zeta - 1); beyond it eta decays to 0.65 eta_f with the slip scale ``softening_slip``),
 p0 = 100 kPa, a weak zone (eta0 10 % lower, W/6 wide and W/3 high at the bottom-left corner: the same
-region on every mesh with a multiple of 6 elements across) as the trigger, no geometric imperfection, Q1 B-bar elements with 8, 12 and 16 elements across the 50 mm width. Each mesh runs
+region on every mesh with a multiple of 6 elements across) as the trigger, no geometric imperfection,
+Q1 B-bar elements with 12, 18 and 24 elements across the 50 mm width (h, h/1.5, h/2). Each mesh runs
 twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
 t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
 it were one band thickness wide).
@@ -22,7 +23,7 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
 complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
 
-    python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 8 12 16] [--variants ...]
+    python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--quick", action="store_true",
                     help="mesh 4, regularised only, to the peak (3 %% strain), 10 steps, no stabilisation")
     ap.add_argument("--out", default="out/fe_04_biaxial")
-    ap.add_argument("--resolutions", type=int, nargs="+", default=[8, 12, 16], help="elements across the width")
+    ap.add_argument("--resolutions", type=int, nargs="+", default=[12, 18, 24],
+                    help="elements across the width (multiples of 6: the weak zone is the same region on each)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=["regularised", "unregularised"],
                     help="regularised: the crack band; gradient: the implicit gradient of length --length")
     ap.add_argument("--length", type=float, default=0.006, help="the gradient's length l [m] (variant gradient)")
