@@ -322,7 +322,7 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         ax.plot(alphas, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
-           title=f"biaxial with softening, {meshes[1]} elements across, {_band_regularisation(full)}")
+           title=f"biaxial with softening, {meshes[1]} elements across\n{_band_regularisation(full)}")
     _tidy(ax)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_vs_alpha.png")
