@@ -258,7 +258,9 @@ def _replay(args) -> int:
 
 def _print_zero_step_drift(case, material, checkpoint) -> None:
     """How far the material moves the checkpoint's committed stress for a zero strain increment, over a
-    nominal step and over the smallest step the cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`)."""
+    nominal step and over the smallest step the cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`);
+    a point counts as moved above 1e-9 of its largest stress component (the local solver converges to 1e-12
+    of the point's strain scale, so a consistent law stays below it: the thesis sand's footing, 2e-13)."""
     from femgran import checkpoint as ck
     from femgran.cases.base import build_problem
     from femgran.diagnostics import zero_step_drift
