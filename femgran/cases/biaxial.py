@@ -219,13 +219,19 @@ class _PeakStrains:
     """The strain at the history rows whose q is within 1 % of the largest q so far (float32), kept in
     ``data`` under :data:`KEYS` so that the checkpoints carry it (a resumed run measures the band from the
     same peak): the band is measured from the first row within 1 % of the final peak, which every later
-    running maximum keeps among these rows. Memory: a few rows after a sharp peak, more on a plateau."""
+    running maximum keeps among these rows. Memory: a few rows after a sharp peak, more on a plateau.
+
+    The strains live in a buffer of doubling capacity, and ``data["peak_strains"]`` is a view of its filled
+    rows, replaced (never changed in place) at every step as :attr:`Problem.persist` requires: a row added
+    on a plateau is written past the end of the previous view, so a long plateau costs amortised O(1) per
+    step instead of a copy of every kept row."""
 
     KEYS = ("peak_rows", "peak_q", "peak_strains", "peak_count")
 
     def __init__(self, n_points: int):
         self.data = {"peak_rows": np.zeros(0, np.int64), "peak_q": np.zeros(0),
                      "peak_strains": np.zeros((0, n_points, 3, 3), np.float32), "peak_count": np.zeros(1, np.int64)}
+        self._buffer = self.data["peak_strains"]
 
     def add(self, q: float, strain) -> None:
         d = self.data
@@ -233,11 +239,21 @@ class _PeakStrains:
         d["peak_count"] = np.array([row + 1])
         q_max = max(q, float(d["peak_q"].max()) if d["peak_q"].size else q)
         keep = d["peak_q"] >= 0.99 * q_max
-        rows, qs, strains = d["peak_rows"][keep], d["peak_q"][keep], d["peak_strains"][keep]
+        strains = d["peak_strains"]
+        if strains.base is not self._buffer and strains is not self._buffer:  # restored from a checkpoint
+            self._buffer = strains
+        if not keep.all():  # a new maximum drops rows: compact into a new buffer
+            self._buffer = np.ascontiguousarray(strains[keep])
+            strains = self._buffer
+        rows, qs, n = d["peak_rows"][keep], d["peak_q"][keep], int(keep.sum())
         if q >= 0.99 * q_max:
-            rows, qs = np.append(rows, row), np.append(qs, q)
-            strains = np.concatenate([strains, np.asarray(strain, np.float32)[None]])
-        d["peak_rows"], d["peak_q"], d["peak_strains"] = rows, qs, strains
+            if n == self._buffer.shape[0]:  # full: double the capacity (the old views stay as they are)
+                grown = np.empty((max(2 * n, 4),) + self._buffer.shape[1:], np.float32)
+                grown[:n] = strains[:n]
+                self._buffer = grown
+            self._buffer[n] = np.asarray(strain, np.float32)
+            rows, qs, n = np.append(rows, row), np.append(qs, q), n + 1
+        d["peak_rows"], d["peak_q"], d["peak_strains"] = rows, qs, self._buffer[:n]
 
     @staticmethod
     def strain_at(data: dict, row: int) -> np.ndarray:

@@ -362,3 +362,29 @@ def test_weak_zone_is_the_same_region_on_every_mesh_whose_edges_follow_it():
         _with_weak_zone(law, 0.1, d, 0.01, W, 0.05)
     with pytest.raises(ValueError, match=r"weak_zone_size = 1.5: allowed 0 < weak_zone_size <= 1"):
         Biaxial(weak_zone=0.1, weak_zone_size=1.5)
+
+
+def test_peak_strains_keep_the_rows_near_the_peak_without_changing_a_persisted_view():
+    """The biaxial case keeps the strain of the rows within 1 % of the running peak: on a plateau every
+    row, after a new maximum only those near it; each step replaces the persisted arrays and never writes
+    into one handed out before (the checkpoints copy them as they are)."""
+    from femgran.cases.biaxial import _PeakStrains
+
+    peak = _PeakStrains(2)
+    views = []
+    for k in range(40):  # a plateau: q within 1 % of its maximum
+        peak.add(100.0 + 0.01 * (k % 3), np.full((2, 3, 3), float(k)))
+        views.append(peak.data["peak_strains"])
+    assert peak.data["peak_rows"].tolist() == list(range(40))
+    for k, v in enumerate(views):
+        assert v.shape[0] == k + 1 and np.array_equal(v[:, 0, 0, 0], np.arange(k + 1, dtype=np.float32))
+    assert np.array_equal(_PeakStrains.strain_at(peak.data, 17), np.full((2, 3, 3), 17.0))
+    peak.add(150.0, np.full((2, 3, 3), -1.0))  # a new maximum: only its row is near it
+    assert peak.data["peak_rows"].tolist() == [40] and peak.data["peak_strains"].shape[0] == 1
+    assert np.array_equal(views[-1][:, 0, 0, 0], np.arange(40, dtype=np.float32))  # the old view unchanged
+    # a state restored from a checkpoint (plain arrays) goes on from where it was
+    restored = _PeakStrains(2)
+    restored.data.update({k: np.array(v, copy=True) for k, v in peak.data.items()})
+    restored.add(149.0, np.full((2, 3, 3), 7.0))
+    assert restored.data["peak_rows"].tolist() == [40, 41]
+    assert np.array_equal(_PeakStrains.strain_at(restored.data, 41), np.full((2, 3, 3), 7.0))
