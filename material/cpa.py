@@ -413,8 +413,9 @@ class CPAModel:
             prev_threads = numba.get_num_threads()
             numba.set_num_threads(int(self.threads))
         grad_out = np.empty((n, 14))
+        soft = self._softening_scale(state, n)
         try:
-            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, self._softening_scale(state, n), c0, m_over, shift_n,
+            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
                          sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
                          mobilised)
         finally:
@@ -452,7 +453,7 @@ class CPAModel:
             return new_sig, new_state, tan
         # the local measure e grows by S / t, S the slip increments of the planes past their peak at the start
         # (a plane that passes its peak within a step counts from the next step on: e is continuous in time)
-        post = (kap_n >= p.kappa_instability) & (self._softening_scale(state, n) > 0)[:, None]
+        post = (kap_n >= p.kappa_instability) & (soft > 0)[:, None]
         S = np.where(post, kap_out - kap_n, 0.0).sum(axis=1)
         new_state["post_peak_strain"] = e_n + S / p.t
         if d_nonlocal is None:  # the local law: the field follows the point's own post-peak slip strain
