@@ -41,6 +41,36 @@ def test_an_x_of_two_bands_is_found_along_one_arm():
     assert band.thickness_m == pytest.approx(0.006, rel=0.2)
 
 
+def test_the_contrast_is_the_rise_over_the_background_under_the_band():
+    """A band off the centroid on a sloped background: the background under the band, not at the
+    centroid, sets the contrast (the measure does not depend on where the band lies)."""
+    rng = np.random.default_rng(4)
+    theta = 60.0
+    n = np.array([-np.sin(np.radians(theta)), np.cos(np.radians(theta))])
+    centre = POINTS.mean(axis=0) + 0.015 * n  # 15 mm off the centroid, across the band
+    d = (POINTS - POINTS.mean(axis=0)) @ n
+    background = np.maximum(0.5 + 20.0 * d, 0.05)  # 0.5 at the centroid, 0.8 under the band
+    w = background + 2.0 * _band(theta, 0.006, centre) + 0.02 * rng.standard_normal(len(POINTS))
+    band = measure_band(POINTS, w, element_size=h)
+    expected = 2.0 / 0.8
+    assert band.localised and band.contrast == pytest.approx(expected, rel=0.1)
+    assert band.thickness_m == pytest.approx(0.006, rel=0.1)
+
+
+def test_a_lopsided_profile_keeps_a_non_negative_background():
+    """Zero intensity on one side of the band, a broad plateau on the other (the crush of a weak zone
+    next to the band): the background fitted under the peak is nowhere negative in the window."""
+    theta, centre = 55.0, (0.025, 0.05)
+    n = np.array([-np.sin(np.radians(theta)), np.cos(np.radians(theta))])
+    d = (POINTS - centre) @ n
+    w = _band(theta, 0.006, centre) + 0.4 / (1.0 + np.exp(-(d - 0.004) / 0.0015))
+    band = measure_band(POINTS, w, element_size=h)
+    assert band.localised
+    centres, means, fitted = band.profile
+    assert band.thickness_m == pytest.approx(0.006, rel=0.25)
+    assert np.isfinite(fitted).sum() >= 6 and np.nanmin(fitted) >= -1e-9  # the fit, over its window
+
+
 @pytest.mark.parametrize("field", ["uniform", "gradient"])
 def test_a_diffuse_field_is_no_band(field):
     rng = np.random.default_rng(3)
