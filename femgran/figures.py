@@ -14,8 +14,9 @@ complete) and a drawing step that reads the run folders:
   angle, and its strength against the homogeneous element test;
 * ``shear-band`` -- the plane-strain biaxial test with softening on three meshes: curves, band angle and
   thickness against the element size (:mod:`femgran.band`), the bands, and the band angle against the
-  deposition angle (0, 30, 60, 90 on the middle mesh); crack band in the reduced set, the implicit
-  gradient (l = 6 mm, to 8 % axial strain) in the full set.
+  deposition angle (0, 30, 60, 90: on the middle mesh in the reduced set, the crack band; on the
+  coarsest in the full set, the implicit gradient with l = 6 mm to 8 % axial strain on meshes of
+  h <= l / 3).
 
 Every PNG has a CSV of the same stem with what it draws; ``OUT/README.md`` lists each figure with a
 sentence on what it shows. The default is a reduced size (coarse meshes, few steps, DEM samples at a
@@ -120,16 +121,19 @@ _BAND_MATERIAL = {"preset": "ottawa_c109", "stabilisation": 0.1,
 _BAND_LENGTH_M = 0.006
 
 
-def _band_setup(full: bool) -> tuple[list[int], dict, dict]:
-    """Meshes, case fields and material of the shear-band study: the reduced set on coarse meshes with the
-    crack band (minutes); the full set on meshes of h = 0.7, 0.46 and 0.35 l with the implicit gradient
-    to 8 % (the meshes have 6, 9 and 12 times W/72 as element size, so the weak zone is the same region)."""
+def _band_setup(full: bool) -> tuple[list[int], int, dict, dict]:
+    """Meshes, the mesh of the deposition-angle runs, case fields and material of the shear-band study: the
+    reduced set on coarse meshes with the crack band (minutes); the full set with the implicit gradient to
+    8 % on meshes of h = 0.35, 0.23 and 0.17 l (24, 36 and 48 elements across: multiples of 6 times W/144,
+    so the weak zone is the same region), the deposition-angle runs on the coarsest. A mesh of h = 0.46 l
+    (18 elements) does not resolve the CPA gradient: its band took another angle and its curve left the
+    finer meshes' by 3 % (docs/regularisation.md, section 4)."""
     fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 1.0 / 12.0, "weak_zone_size": 1.0 / 3.0,
              "imperfection": 0.0}
     if full:
-        return [12, 18, 24], {**fixed, "axial_strain": 0.08, "steps": 320}, \
+        return [24, 36, 48], 24, {**fixed, "axial_strain": 0.08, "steps": 320}, \
             {**_BAND_MATERIAL, "nonlocal_length": _BAND_LENGTH_M}
-    return [4, 6, 8], {**fixed, "axial_strain": 0.05, "steps": 60}, _BAND_MATERIAL
+    return [4, 6, 8], 6, {**fixed, "axial_strain": 0.05, "steps": 60}, _BAND_MATERIAL
 
 
 def _band_regularisation(full: bool) -> str:
@@ -137,9 +141,9 @@ def _band_regularisation(full: bool) -> str:
 
 
 def _band_runs(full: bool) -> list[Run]:
-    meshes, fixed, law = _band_setup(full)
+    meshes, alpha_mesh, fixed, law = _band_setup(full)
     return (_case_runs("biaxial", "resolution", meshes, fixed, law)
-            + _case_runs("biaxial", "alpha_deg", [30.0, 60.0, 90.0], {**fixed, "resolution": meshes[1]}, law,
+            + _case_runs("biaxial", "alpha_deg", [30.0, 60.0, 90.0], {**fixed, "resolution": alpha_mesh}, law,
                          prefix="band_alpha"))
 
 
@@ -299,13 +303,13 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
 
 
 def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
-    """Band angle against the deposition angle (the middle mesh of the study at alpha 0 and the alpha runs)."""
+    """Band angle against the deposition angle (the study's run at alpha 0 on the alpha runs' mesh, and those)."""
     import matplotlib.pyplot as plt
 
     from material.plotting import save_figure
 
-    meshes = _band_setup(full)[0]
-    runs = [kr for kr in _completed(records, "biaxial_") if kr[1]["values"]["resolution"] == meshes[1]]
+    alpha_mesh = _band_setup(full)[1]
+    runs = [kr for kr in _completed(records, "biaxial_") if kr[1]["values"]["resolution"] == alpha_mesh]
     runs += _completed(records, "band_alpha_")
     if len(runs) < 2:
         return {}
@@ -322,7 +326,7 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         ax.plot(alphas, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
-           title=f"biaxial with softening, {meshes[1]} elements across\n{_band_regularisation(full)}")
+           title=f"biaxial with softening, {alpha_mesh} elements across\n{_band_regularisation(full)}")
     _tidy(ax)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_vs_alpha.png")
