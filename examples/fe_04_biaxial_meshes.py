@@ -54,7 +54,9 @@ def main(argv=None) -> dict:
                     help="elements across the width (multiples of 6: the weak zone is the same region on each)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=["regularised", "unregularised"],
                     help="regularised: the crack band; gradient: the implicit gradient of length --length")
-    ap.add_argument("--length", type=float, default=0.006, help="the gradient's length l [m] (variant gradient)")
+    ap.add_argument("--length", type=float, default=0.006,
+                    help="the gradient's length l [m] (variant gradient; it needs h <= l/3: 24 elements or more "
+                         "across for l = 6 mm, docs/regularisation.md section 4)")
     ap.add_argument("--softening-slip", type=float, default=0.03, help="slip scale of the softening [m]")
     ap.add_argument("--youngs-modulus", type=float, default=60000.0, help="E [kPa]")
     ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
