@@ -124,8 +124,8 @@ _BAND_LENGTH_M = 0.006
 def _band_setup(full: bool) -> tuple[list[int], int, dict, dict]:
     """Meshes, the mesh of the deposition-angle runs, case fields and material of the shear-band study: the
     reduced set on coarse meshes with the crack band (minutes); the full set with the implicit gradient to
-    8 % on meshes of h = 0.35, 0.23 and 0.17 l (24, 36 and 48 elements across: multiples of 6 times W/144,
-    so the weak zone is the same region), the deposition-angle runs on the coarsest. A mesh of h = 0.46 l
+    8 % on meshes of h = 0.35, 0.23 and 0.17 l (24, 36 and 48 elements across, multiples of 6, so the
+    weak zone is the same region), the deposition-angle runs on the coarsest. A mesh of h = 0.46 l
     (18 elements) does not resolve the CPA gradient: its band took another angle and its curve left the
     finer meshes' by 3 % (docs/regularisation.md, section 4)."""
     fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 1.0 / 12.0, "weak_zone_size": 1.0 / 3.0,
