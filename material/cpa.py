@@ -377,7 +377,7 @@ class CPAModel:
         if gradient:
             check_state(state, n, ("nonlocal",))
             e_n = np.asarray(state["post_peak_strain"], dtype=float) if "post_peak_strain" in state else \
-                self._post_peak_strain(kap_n, kap_n)  # (a state of an older version)
+                self._post_peak_strain(kap_n)  # (a state of an older version)
             if "nonlocal_shift" in state:
                 shift_n = np.ascontiguousarray(state["nonlocal_shift"], dtype=float)
                 if shift_n.shape != (n, M):
@@ -471,12 +471,11 @@ class CPAModel:
             tan, _k.from_mandel(np.ascontiguousarray(grad_out[:, 7:13] * scale)), e_n + grad_out[:, 0] / p.t,
             _k.from_mandel(np.ascontiguousarray(grad_out[:, 1:7] / p.t)), grad_out[:, 13] * m_over)
 
-    def _post_peak_strain(self, kappa, kappa_n) -> np.ndarray:
-        """sum of kappa_a - kappa* over the planes past their peak at ``kappa_n``, divided by t (N,): the local
-        measure e of a state written before e was a state variable ("post_peak_strain")."""
+    def _post_peak_strain(self, kappa) -> np.ndarray:
+        """sum of kappa_a - kappa* over the planes past their peak, divided by t (N,): the local measure e of a
+        state written before e was a state variable ("post_peak_strain")."""
         kstar = self.params.kappa_instability
-        post = kappa_n >= kstar
-        return np.where(post, kappa - kstar, 0.0).sum(axis=1) / self.params.t
+        return np.where(kappa >= kstar, kappa - kstar, 0.0).sum(axis=1) / self.params.t
 
     # ----------------------------------------------------------------------------- replay
     def _record_failure(self, de, sig, state, idx, d_nonlocal=None, step_fraction: float = 1.0) -> None:

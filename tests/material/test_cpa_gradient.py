@@ -116,8 +116,9 @@ def test_a_state_of_an_older_version_resumes_with_e_from_the_slips_and_no_shift(
     assert np.abs(state["nonlocal_shift"]).max() > p.A
     old = {k: v for k, v in state.items() if k not in ("post_peak_strain", "nonlocal_shift")}
     s_old, st_old, _ = model.update(de, sig, old, d_nonlocal=np.full(1, 0.01))
-    rule = dict(old, post_peak_strain=model._post_peak_strain(state["kappa"], state["kappa"]),
-                nonlocal_shift=np.zeros_like(state["nonlocal_shift"]))
+    kstar = p.kappa_instability  # e: the slip past the peak of the planes past it, over t
+    e_rule = np.where(state["kappa"] >= kstar, state["kappa"] - kstar, 0.0).sum(axis=1) / p.t
+    rule = dict(old, post_peak_strain=e_rule, nonlocal_shift=np.zeros_like(state["nonlocal_shift"]))
     s_rule, st_rule, _ = model.update(de, sig, rule, d_nonlocal=np.full(1, 0.01))
     assert st_old["status"][0] == 0 and {"post_peak_strain", "nonlocal_shift"} <= set(st_old)
     assert np.array_equal(s_old, s_rule) and np.array_equal(st_old["post_peak_strain"], st_rule["post_peak_strain"])
