@@ -262,6 +262,13 @@ def _client(scheduler: str | None, workers: int):
         except OSError as exc:
             raise ValueError(f"scheduler = {scheduler!r}: no Dask scheduler answers there ({exc}); allowed: the "
                              "address a 'dask scheduler' printed, e.g. tcp://10.0.0.5:8786, or none") from None
+    # the workers' environment is in place when they are spawned: a worker imports numba while it starts (the
+    # parent's main module), before the Nanny's ``env`` reaches its os.environ; numba then launches its threads
+    # with the machine's count and refuses to compile anything once the environment says otherwise ("Cannot
+    # set NUMBA_NUM_THREADS ...": measured with a stale numba cache, e.g. the first study after an install).
+    # This process's own environment is restored once they run (numba here keeps the configuration it has).
+    saved = {key: os.environ.get(key) for key in WORKER_ENVIRONMENT}
+    os.environ.update(WORKER_ENVIRONMENT)
     try:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR, env=dict(WORKER_ENVIRONMENT))  # ":0": any free port
@@ -270,6 +277,12 @@ def _client(scheduler: str | None, workers: int):
                            "workers are spawned: a script that runs a study needs the `if __name__ == "
                            "\"__main__\":` guard (and cannot be read from stdin); or run it with "
                            "scheduler=\"serial\"") from None
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
     return Client(cluster), cluster
 
 

@@ -128,3 +128,56 @@ def test_a_study_runs_on_an_existing_dask_cluster(tmp_path, monkeypatch):
     monkeypatch.setattr("material.sweep.CONNECT_TIMEOUT_S", 2)
     with pytest.raises(ValueError, match="no Dask scheduler answers there"):
         sweep(_element_runs(steps=10)[2:], tmp_path / "x", scheduler="tcp://127.0.0.1:9", progress=False)
+
+
+_PROBE = '''
+import os
+
+import numba
+from numba import njit
+
+
+def report(out):
+    """The worker's numba configuration, and a function compiled after its threads are running."""
+    numba.get_num_threads()  # launches the threading layer
+
+    @njit
+    def plus_one(x):
+        return x + 1.0
+
+    return {"env": os.environ.get("NUMBA_NUM_THREADS"), "config": numba.config.NUMBA_NUM_THREADS,
+            "threads": numba.get_num_threads(), "compiled": plus_one(1.0)}
+'''
+
+
+_PROBE_STUDY = """
+import json
+import sys
+
+import numba  # noqa: F401 (the main module imports numba, as the femgran command does)
+
+from material.sweep import Run, sweep
+
+if __name__ == "__main__":
+    result = sweep([Run(f"r{i}", "numba_probe:report") for i in range(2)], sys.argv[1], workers=2, progress=False)
+    import os
+    print(json.dumps([result[f"r{i}"].get("summary") for i in range(2)] + [os.environ.get("NUMBA_NUM_THREADS")]))
+"""
+
+
+def test_local_workers_start_with_one_numba_thread_and_compile(tmp_path):
+    """A spawned worker imports the study's main module, and with it numba, before the Nanny's environment
+    reaches it: the environment is set before the workers are spawned, so that numba launches one thread
+    per worker and a kernel compiled in a worker (a stale cache) does not meet "Cannot set
+    NUMBA_NUM_THREADS ... once the threads have been launched"; the study's process gets its own environment
+    back (its numba would meet the same error)."""
+    (tmp_path / "numba_probe.py").write_text(_PROBE)
+    (tmp_path / "study.py").write_text(_PROBE_STUDY)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    env.pop("NUMBA_NUM_THREADS", None)
+    out = subprocess.run([sys.executable, str(tmp_path / "study.py"), str(tmp_path / "out")], env=env,
+                         capture_output=True, text=True, timeout=240)
+    assert out.returncode == 0, out.stderr[-2000:]
+    summaries = json.loads(out.stdout.strip().splitlines()[-1])
+    # ... and the study's own environment is as it was
+    assert summaries == [{"env": "1", "config": 1, "threads": 1, "compiled": 2.0}] * 2 + [None]
