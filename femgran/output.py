@@ -10,7 +10,9 @@ Fields (snake_case; units: m, kPa):
   fields: ``stress``, ``strain``, ``plastic_strain`` (9 components each, XX XY XZ YX ... ZZ: the full
   3x3 row-major tensor, so ParaView's component order question does not arise), scalars
   ``mobilised_ratio`` (CPA: mobilised friction tau/sigma_N of the most loaded plane over eta_f),
-  ``kappa_max`` (CPA: largest plane hardening variable, m), ``eq_plastic_strain`` (von Mises law),
+  ``kappa_max`` (CPA: largest plane hardening variable, m), ``stabilisation`` (CPA: the mu of the step
+  stabilisation's floor in the last step, 0 where the thesis's law was uniquely solvable, docs/cpa_law.md
+  section 4), ``eq_plastic_strain`` (von Mises law),
   ``q_kPa`` (sqrt(3 J2)), ``p_kPa`` (mean stress, compression +);
 * cell data: the averages of the same quadrature fields over each element (weighted by dx),
   ``status`` (max material status in the element) and ``deposition_axis`` (material e2, if the
@@ -77,7 +79,7 @@ def point_fields(solver) -> dict[str, np.ndarray]:
     dev = s + p[:, None, None] * np.eye(3)
     out["p_kPa"] = p[:, None]
     out["q_kPa"] = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))[:, None]
-    for key in ("mobilised_ratio", "eq_plastic_strain", "pore_pressure_kPa"):
+    for key in ("mobilised_ratio", "stabilisation", "eq_plastic_strain", "pore_pressure_kPa"):
         if key in st:
             out[key] = np.asarray(st[key], float).reshape(-1, 1)
     if "kappa" in st:

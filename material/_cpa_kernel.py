@@ -17,7 +17,7 @@ from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
-              grad_out, status, iterations, halvings, reached, opening, mobilised):
+              grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu):
     """Update N Gauss points (Mandel vectors), in parallel over chunks of points.
 
     Inputs: ``law`` (:class:`material._cpa_local.Law`), ``opt`` (:class:`material._cpa_local.Options`),
@@ -29,7 +29,8 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
     loading (N, M) bool, grad_out (N, 14) the gradient's S and derivatives
     (:func:`material._cpa_local.point_update`), status (N,) int8, iterations and halvings (N,) int32,
     reached (N,) the fraction of the increment a failed point reached (1 otherwise), opening (N,) plastic
-    volumetric opening of the cut-off, mobilised (N,) the largest etah_a / eta_f,a.
+    volumetric opening of the cut-off, mobilised (N,) the largest etah_a / eta_f,a, floor_mu (N,) the mu of the
+    step stabilisation's floor at each point.
     """
     N = sig_n.shape[0]
     M = kap_n.shape[1]
@@ -39,7 +40,7 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
         ws = make_workspace(M)
         pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
-            st, its, hv, lam, dl, best = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
+            st, its, hv, lam, dl, best, mu = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
                                                       c0[p], m_over, nl_shift[p], sig_out[p], kap_out[p], D_out[p],
                                                       loading[p], grad_out[p], ws)
             status[p] = st
@@ -48,6 +49,7 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
             reached[p] = lam
             opening[p] = dl
             mobilised[p] = best
+            floor_mu[p] = mu
 
 
 @njit(cache=True, error_model="numpy")

@@ -105,7 +105,9 @@ Law = namedtuple("Law", [
 
 #: Options of the local solver.
 #: ``step``: the size of this step in units of the run's nominal step (the step stabilisation's relaxation time).
-Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation", "step"])
+#: ``minimal``: the floor's mu of each point is the least that makes its rate problem uniquely solvable
+#: (:func:`_uniqueness_floor`) instead of ``stabilisation``.
+Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation", "step", "minimal"])
 
 #: The data of one point's local problem (fixed during its solution except ``de``, the increment of the
 #: current fraction, and ``select``).
@@ -638,18 +640,17 @@ def _lemke(tab, basis, n, maxpivots):
 
 
 @njit(cache=True, error_model="numpy")
-def _rate_active_set(law, pt, ws):
-    """Choose the branch of every plane on its kink at sigma_n by the rate problem (sets ``pt.select``).
+def _rate_coupling(law, pt, ws, on, with_floor):
+    """The coupling matrix of the rate problem at sigma_n: fills ``on`` with the n planes on their hardening
+    curve, ``ws.bvec``/``ws.mvec`` of those planes at sigma_n, and the columns n..2n-1 of Lemke's tableau
+    with -H, H_ab = (w_b / t) b_a . C m_b + (eta'_a + floor_a) delta_ab (``with_floor``: the step
+    stabilisation's floor ``pt.floor`` included). Returns n.
 
-    The planes on their hardening curve at sigma_n load at rates x >= 0 with the rates of their
-    overstress g_dot = q - H x <= 0 and x . g_dot = 0, q_a = b_a . C d_eps (the elastic rate of etah_a),
-    H_ab = (w_b / t) b_a . C m_b + eta'_a delta_ab. Solved by Lemke's method; where it finds no solution
-    the choice stays the loading branch for all. Returns whether a solution was found. (The implicit
-    gradient's coupling of the planes past their peak through S is left out: the choice only supplies the
-    starting branches.)
+    The planes on their curve load at rates x >= 0; their overstress rates are q - H x with
+    q_a = b_a . C d_eps (the elastic rate of etah_a): H decides whether the rate problem has one solution
+    for every q (H a P-matrix) or several.
     """
     M = pt.kap_n.shape[0]
-    on = np.empty(M, dtype=np.int64)
     n = 0
     sig = pt.sig_n
     hard = ws.dk_try  # eta' of each plane on its curve (scratch)
@@ -663,7 +664,7 @@ def _rate_active_set(law, pt, ws):
         if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
-            hard[a] = deta + pt.floor[a]
+            hard[a] = deta + (pt.floor[a] if with_floor else 0.0)
             # m and b at sigma_n
             s_t = tau / T
             wc, _ = compaction_weight(sigma_t, law.compaction_stress)
@@ -672,17 +673,8 @@ def _rate_active_set(law, pt, ws):
                 s_i = s_t * sn6[i]
                 ws.bvec[i, a] = (s_i + ratio * law.nn6[a, i]) / sigma_t
                 ws.mvec[i, a] = s_i + dil * law.nn6[a, i]
-        pt.select[a] = False
-    if n == 0:
-        return True
     tab = ws.tableau
     cm = ws.vecs[_V_COL]  # C m_b
-    cde = ws.vecs[_V_S0]  # C d_eps
-    for i in range(6):
-        acc = 0.0
-        for j in range(6):
-            acc += law.stiff[i, j] * pt.de[j]
-        cde[i] = acc
     for jb in range(n):
         bpl = on[jb]
         for i in range(6):
@@ -698,6 +690,33 @@ def _rate_active_set(law, pt, ws):
                 acc += ws.bvec[i, apl] * cm[i]
             h = wt * acc + (hard[apl] if ia == jb else 0.0)
             tab[ia, n + jb] = -h  # the tableau holds -M (M = H)
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def _rate_active_set(law, pt, ws):
+    """Choose the branch of every plane on its kink at sigma_n by the rate problem (sets ``pt.select``).
+
+    The planes on their hardening curve at sigma_n load at rates x >= 0 with the rates of their
+    overstress g_dot = q - H x <= 0 and x . g_dot = 0 (:func:`_rate_coupling`). Solved by Lemke's method;
+    where it finds no solution the choice stays the loading branch for all. Returns whether a solution was
+    found. (The implicit gradient's coupling of the planes past their peak through S is left out: the
+    choice only supplies the starting branches.)
+    """
+    M = pt.kap_n.shape[0]
+    on = np.empty(M, dtype=np.int64)
+    n = _rate_coupling(law, pt, ws, on, True)
+    for a in range(M):
+        pt.select[a] = False
+    if n == 0:
+        return True
+    tab = ws.tableau
+    cde = ws.vecs[_V_S0]  # C d_eps
+    for i in range(6):
+        acc = 0.0
+        for j in range(6):
+            acc += law.stiff[i, j] * pt.de[j]
+        cde[i] = acc
     for ia in range(n):
         apl = on[ia]
         for j in range(n):
@@ -721,6 +740,75 @@ def _rate_active_set(law, pt, ws):
     return True
 
 
+#: The minimal stabilisation takes its bound on mu this much larger: the bound makes the symmetric part of
+#: the scaled coupling positive semi-definite only, and the coupling moves with the stress within the step.
+#: (At the near-failure point of the tests the bound is 0.075 and the coupling is a P-matrix from mu = 0.06:
+#: the bound itself is conservative there.)
+_FLOOR_MARGIN = 1.1
+
+
+@njit(cache=True, error_model="numpy")
+def _cholesky_succeeds(S):
+    """Whether the symmetric matrix S is positive definite: its Cholesky factorisation, in place (the factor
+    overwrites the lower triangle and the diagonal of S)."""
+    n = S.shape[0]
+    for j in range(n):
+        acc = S[j, j]
+        for k in range(j):
+            acc -= S[j, k] * S[j, k]
+        if not acc > 0.0:
+            return False
+        ljj = np.sqrt(acc)
+        S[j, j] = ljj
+        for i in range(j + 1, n):
+            acc = S[i, j]
+            for k in range(j):
+                acc -= S[i, k] * S[j, k]
+            S[i, j] = acc / ljj
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _uniqueness_floor(law, pt, ws, unit):
+    """The least mu of the step stabilisation for which the rate problem at sigma_n is uniquely solvable, by
+    a sufficient condition (the ``"minimal"`` stabilisation; ``docs/cpa_law.md``, section 4).
+
+    With the floor mu unit_a (``unit`` (M,): the plane's elastic self-coupling (w_a / t) G / sigma~_a) the
+    coupling matrix of the planes on their curve is H + mu U. A matrix whose rows, scaled by positive
+    numbers d_a, give a positive definite symmetric part is a P-matrix: its rate problem has one solution
+    for every strain rate (Cottle, Pang & Stone 1992, 3.3). With d_a = w_a sigma~_a the scaled elastic
+    coupling is (w_a w_b / t) m_a . C (sigma~_b b_b): symmetric positive semi-definite for associated flow
+    (m = sigma~ b), so only the non-associated part and the hardening decide. (Without the row scaling the
+    rows of planes near their apex, b_a ~ 1 / sigma~_a, dominate: measured on a footing point at 0.1 kPa,
+    a bound of 1e13 against none needed with it.) So H + mu U is a P-matrix for
+    mu > -lambda_min, lambda_min the least eigenvalue of F^-1/2 sym(D H) F^-1/2, D = diag(d), F = D U.
+    Returns _FLOOR_MARGIN max(0, -lambda_min): 0 where the thesis's law is uniquely solvable at the point.
+    """
+    on = ws.basis  # (scratch: Lemke's basis is not in use)
+    n = _rate_coupling(law, pt, ws, on, False)
+    if n == 0:
+        return 0.0
+    tab = ws.tableau
+    d, f = ws.trial_plane[0], ws.trial_plane[1]  # (scratch)
+    for ia in range(n):
+        a = on[ia]
+        sigma_t = plane_stress(pt.sig_n, law.normals[a], pt.shift[a], law.rounding)[0]
+        d[ia] = law.weights[a] * sigma_t
+        f[ia] = d[ia] * unit[a]
+    S = tab[:n, :n]  # the scaled symmetric part, in the tableau's first columns (-H is in the next n)
+    for sweep in range(2):
+        for ia in range(n):
+            for jb in range(n):
+                S[ia, jb] = -0.5 * (d[ia] * tab[ia, n + jb] + d[jb] * tab[jb, n + ia]) / np.sqrt(f[ia] * f[jb])
+        # most points' rate problems are uniquely solvable: a Cholesky factorisation says so at a fraction of
+        # the cost of the eigenvalue (measured: the eigenvalue at every plastic point took 4.4 times the
+        # update); it overwrites S, which the second sweep makes again for the eigenvalue
+        if sweep == 0 and _cholesky_succeeds(S):
+            return 0.0
+    lmin = np.linalg.eigvalsh(S)[0]
+    return _FLOOR_MARGIN * max(0.0, -lmin)
+
+
 @njit(cache=True, error_model="numpy")
 def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
                  loading, grad_out, ws):
@@ -734,7 +822,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     (S the sum of the slip increments of the planes past their peak; zeros without the gradient, the
     derivatives only with ``opt.tangent``). Returns (status, Newton iterations, continuation halvings, the
     fraction of the increment reached (1 unless failed), opening dlambda of the cut-off, largest
-    etah_a / eta_f,a at the end).
+    etah_a / eta_f,a at the end, the mu of the step stabilisation's floor (0 at an elastic point)).
     """
     M = kap_n.shape[0]
     vecs = ws.vecs
@@ -775,7 +863,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
             for i in range(6):
                 for j in range(6):
                     D_out[i, j] = law.stiff[i, j]
-        return OK, 0, 0, 1.0, 0.0, best
+        return OK, 0, 0, 1.0, 0.0, best, 0.0
     # the strain scale of the point: the increment, or the elastic strain of its stress
     smax = law.apex_stress
     dmax = 0.0
@@ -785,17 +873,20 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     r_scale = dmax + smax * law.comp[0, 0]
     de_lam = vecs[_V_DE]
     # the step stabilisation's floor of each plane over a nominal step: mu times its elastic self-coupling
-    # (w/t) G / sigma~; over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
+    # (w/t) G / sigma~ (uniform mu, or the point's least mu for a unique rate problem with opt.minimal);
+    # over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
     g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
+    unit = ws.floor0
     for a in range(M):
-        if opt.stabilisation > 0.0:
-            sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
-            ws.floor0[a] = opt.stabilisation * law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
-        else:
-            ws.floor0[a] = 0.0
-        ws.floor[a] = ws.floor0[a] / opt.step
+        sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
+        unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+        ws.floor[a] = 0.0
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
                m_over, nl_shift)
+    mu = _uniqueness_floor(law, pt, ws, unit) if opt.minimal else opt.stabilisation
+    for a in range(M):
+        ws.floor0[a] = mu * unit[a]
+        ws.floor[a] = ws.floor0[a] / opt.step
     # follow the branch in the fraction lam of the increment, from the solution at lam = 0 (the start of
     # the step); Newton's first step from a solution is the tangent predictor of the next fraction
     sig_done = vecs[_V_SIG_DONE]
@@ -846,7 +937,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
                 for a in range(M):
                     kap_out[a] = kap_n[a]
                     loading[a] = False
-                return FAILED, total_its, halvings, lam_done, 0.0, np.nan
+                return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu
     # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
     for a in range(M):
@@ -859,7 +950,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     grad_out[0] = s_done
     if opt.tangent:
         _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out)
-    return OK, total_its, halvings, 1.0, dl_done, best
+    return OK, total_its, halvings, 1.0, dl_done, best, mu
 
 
 @njit(cache=True, error_model="numpy")

@@ -69,7 +69,11 @@ class _Options:
     maxit: int = 25
     max_halvings: int = 12
     tol: float = 1e-12
-    stabilisation: float = 0.0
+    stabilisation: float | str = 0.0
+
+
+#: The value of ``stabilisation`` that computes each point's mu (:class:`CPAModel`).
+MINIMAL = "minimal"
 
 
 class CPAModel:
@@ -91,7 +95,7 @@ class CPAModel:
     tol : float
         Convergence of the local solver: |R| <= tol (|d_eps| + |sigma_n| / E) and every
         complementarity residual <= tol (dimensionless).
-    stabilisation : float
+    stabilisation : float or "minimal"
         mu in [0, 1]: a Perzyna-type viscosity whose relaxation time is one nominal load step. The step
         equation of a loading plane is etah = eta(kappa_n + dkappa) + h_a dkappa / f, with the floor
         h_a = mu (w_a / t) G / sigma~_a (mu times the plane's elastic self-coupling at sigma_n) and f the
@@ -102,7 +106,11 @@ class CPAModel:
         slip of one nominal step, so it vanishes as the nominal steps are refined; a shorter step (a
         cut-back) relaxes the overstress a longer one left only in proportion to its length, so the
         update tends to the committed state as the step tends to zero. 0 (the default) solves the
-        thesis's law.
+        thesis's law. ``"minimal"``: each point takes, at the start of each step, the least mu for which
+        the coupling matrix of its planes on their curves is a P-matrix by a sufficient condition (its
+        rate problem has one solution): 0 wherever the thesis's law is uniquely solvable, so the law is
+        changed only at the points where it has no unique response (``state["stabilisation"]`` records
+        each point's mu).
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -123,7 +131,7 @@ class CPAModel:
     TANGENTS = ("tensor", "mandel")  # forms of the tangent :meth:`update` returns
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
-                 maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float = 0.0,
+                 maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float | str = 0.0,
                  replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True,
                  nonlocal_length: float | None = None, over_nonlocal: float = 2.0):
         from material.planes import integration_rule
@@ -138,8 +146,7 @@ class CPAModel:
             raise ValueError(f"max_halvings = {max_halvings!r}: allowed 0..30")
         if not (0 < float(tol) < 1e-3):
             raise ValueError(f"tol = {tol!r}: allowed 0 < tol < 1e-3")
-        if not (np.isfinite(float(stabilisation)) and 0.0 <= float(stabilisation) <= 1.0):
-            raise ValueError(f"stabilisation = {stabilisation!r}: allowed 0 <= stabilisation <= 1")
+        stabilisation = _check_stabilisation(stabilisation)
         if nonlocal_length is not None:
             if not (np.isfinite(float(nonlocal_length)) and float(nonlocal_length) > 0.0):
                 raise ValueError(f"nonlocal_length = {nonlocal_length!r}: must be > 0 (m), or None for no gradient")
@@ -154,7 +161,7 @@ class CPAModel:
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
-        self.options = _Options(int(maxit), int(max_halvings), float(tol), float(stabilisation))
+        self.options = _Options(int(maxit), int(max_halvings), float(tol), stabilisation)
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
         self.regularise = bool(regularise)
@@ -316,7 +323,7 @@ class CPAModel:
     @property
     def rate_dependent(self) -> bool:
         """True with the step stabilisation: :meth:`update` then takes the step's size (``step_fraction``)."""
-        return self.options.stabilisation > 0.0
+        return self.options.stabilisation == MINIMAL or self.options.stabilisation > 0.0
 
     def update(self, d_strain, stress, state: State, *, tangent: bool | str = True, d_nonlocal=None,
                step_fraction: float = 1.0):
@@ -352,7 +359,8 @@ class CPAModel:
             cutoff_opening (N,) accumulated plastic volumetric opening at the tension cut-off;
             mobilised_ratio (N,) the largest etah_a / eta_f,a; near_apex (N,) bool (every stress
             component below 10 apex_rounding, where the rounding changes the law by more than 1 %);
-            element_size (N,) [m].
+            stabilisation (N,) the mu of the step stabilisation's floor at each point in the step (0 at an
+            elastic point); element_size (N,) [m].
         tangent : (N, 3, 3, 3, 3) d stress / d d_strain [kPa], or None.
         """
         de, sig = check_batch(d_strain, stress)
@@ -400,12 +408,14 @@ class CPAModel:
         reached = np.empty(n)
         opening = np.empty(n)
         mobilised = np.empty(n)
+        floor_mu = np.empty(n)
         f = float(step_fraction) if np.ndim(step_fraction) == 0 else np.nan
         if not (np.isfinite(f) and f > 0.0):
             raise ValueError(f"step_fraction = {step_fraction!r}: allowed a finite number > 0 (the step's size in "
                              f"nominal steps)")
         o = self.options
-        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent), o.stabilisation, f)
+        minimal = o.stabilisation == MINIMAL
+        opt = Options(o.tol, o.maxit, o.max_halvings, bool(tangent), 0.0 if minimal else o.stabilisation, f, minimal)
         prev_threads = None
         if self.threads is not None:
             import numba
@@ -417,7 +427,7 @@ class CPAModel:
         try:
             _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
                          sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
-                         mobilised)
+                         mobilised, floor_mu)
         finally:
             if prev_threads is not None:
                 import numba
@@ -441,6 +451,7 @@ class CPAModel:
             "loading": loading,
             "cutoff_opening": np.asarray(state.get("cutoff_opening", np.zeros(n))) + np.where(ok, opening, 0.0),
             "mobilised_ratio": np.where(ok, mobilised, state.get("mobilised_ratio", np.zeros(n))),
+            "stabilisation": floor_mu,
             # within the rounded apex, where N differs from the normal stress by more than 1 %
             "near_apex": np.abs(sig_out).max(axis=1) <= 10.0 * self.params.apex_stress,
         }
@@ -512,6 +523,24 @@ class CPAModel:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **{k: v for k, v in self.last_failure.items() if k != "path"})
         return path
+
+
+def _check_stabilisation(value) -> float | str:
+    """``stabilisation`` of :class:`CPAModel`: a number in [0, 1] or ``"minimal"``."""
+    if isinstance(value, str):
+        if value.strip().lower() == MINIMAL:
+            return MINIMAL
+        try:
+            value = float(value)
+        except ValueError:
+            raise ValueError(f"stabilisation = {value!r}: allowed a number 0 <= mu <= 1 or {MINIMAL!r}") from None
+    try:
+        mu = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"stabilisation = {value!r}: allowed a number 0 <= mu <= 1 or {MINIMAL!r}") from None
+    if not (np.isfinite(mu) and 0.0 <= mu <= 1.0):
+        raise ValueError(f"stabilisation = {value!r}: allowed a number 0 <= mu <= 1 or {MINIMAL!r}")
+    return mu
 
 
 def replay(path, **model_options):

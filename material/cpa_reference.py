@@ -112,6 +112,57 @@ class _Law:
         return ratio, st, g
 
 
+def rate_coupling(law, sig_n, ef, kap_n, soft, level=None):
+    """The rate problem of one point at sigma_n (``docs/cpa_law.md``, section 4), by the definition: the
+    planes ``on`` their hardening curve, and with b_a = d etah_a / d sigma (complex step), m_a = sym(g_a (x) n_a)
+    and C the elastic stiffness, q_a(d_eps) = b_a : C d_eps is returned as the (n, 3, 3) tensors C b_a and
+    H_ab = (w_b / t) b_a : C m_b + eta'_a delta_ab. ``level``: (planes, shifts) of the planes past their peak
+    under the implicit gradient, whose level is the softening branch at kappa_n + shift.
+    Returns (on, Cb, H, sigma~ of every plane); ``law`` is ``_Law(model)``."""
+    p = law.p
+
+    def eta_of(kappa):
+        eta = law.hardening(kappa, ef, soft)
+        if level is not None:
+            at, shift = level
+            eta = np.asarray(eta).copy()
+            eta[at] = law.softening(kappa[at] + shift, ef[at], soft)
+        return eta
+
+    ratio, st, g = law.planes(sig_n, ef)
+    eta_n = eta_of(kap_n.astype(complex)).real
+    on = np.flatnonzero((st > 0) & (ratio >= eta_n - 1e-12 * (1 + eta_n)))
+    b = np.zeros((len(ratio), 3, 3))
+    for i in range(3):
+        for j in range(3):
+            E = np.zeros((3, 3), complex)
+            E[i, j] += 0.5 * 1j * _H
+            E[j, i] += 0.5 * 1j * _H
+            b[:, i, j] = law.planes(sig_n + E, ef)[0].imag / _H
+    m = 0.5 * (np.einsum("ai,aj->aij", g, law.n) + np.einsum("aj,ai->aij", g, law.n))
+
+    def stiff(e):
+        return 2 * law.G * e + law.lam * np.trace(e, axis1=-2, axis2=-1)[..., None, None] * np.eye(3)
+
+    deta = eta_of(kap_n + 1j * _H * p.A).imag / (_H * p.A)
+    H = np.einsum("aij,bij->ab", b[on], stiff(m[on])) * (law.w[on] / p.t)[None, :] + np.diag(deta[on])
+    return on, stiff(b[on]), H, st
+
+
+def minimal_stabilisation(law, sig_n, ef, kap_n, soft, unit, level=None):
+    """The ``"minimal"`` stabilisation's mu of one point, by the definition (``docs/cpa_law.md``, section 4):
+    the coupling H of :func:`rate_coupling` with its rows scaled by w_a sigma~_a, and 1.1 times the least mu
+    for which the symmetric part of the scaled H + mu diag(unit) is positive semi-definite."""
+    on, _, H, st = rate_coupling(law, sig_n, ef, kap_n, soft, level)
+    if on.size == 0:
+        return 0.0
+    d = law.w[on] * st[on]
+    f = d * unit[on]
+    S = d[:, None] * H
+    S = 0.5 * (S + S.T) / np.sqrt(f[:, None] * f[None, :])
+    return 1.1 * max(0.0, -float(np.linalg.eigvalsh(S)[0]))
+
+
 def _weak_slip(law, ratio, kap_n, ef, mu):
     """Slip of a weak plane from etah = eta(kappa_n + d) + mu d / A (the positive root when mu > 0)."""
     p = law.p
@@ -263,8 +314,14 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
         # kappa_hat - kappa of each plane past its peak: its accumulated shift plus m t d_ebar - m S
         grad = (post, shift_n[strong][post] + m * p.t * d_ebar, m) if post.size else None
     # the step stabilisation's floor of each plane over a nominal step: mu (w/t) G / sigma~ at sigma_n
-    st_n = law.planes(sig_n, law.eta_f(eps_n + _sym(_six(np.asarray(d_strain, float).reshape(-1, 3, 3)[point]))))[1]
-    mu = model.options.stabilisation * law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)
+    ef_end = law.eta_f(eps_n + _sym(_six(de)))
+    st_n = law.planes(sig_n, ef_end)[1]
+    unit = law.w / p.t * law.G / np.maximum(st_n, p.apex_stress)
+    if model.options.stabilisation == "minimal":
+        level = None if grad is None else (strong[grad[0]], grad[1])
+        mu = minimal_stabilisation(law, sig_n, ef_end, kap_n, soft, unit, level) * unit
+    else:
+        mu = model.options.stabilisation * unit
     ns = strong.size
     ng = 0 if grad is None else 1
     de6 = _six(de)

@@ -242,7 +242,7 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
     from material import _cpa_local as L
     from material._cpa_kernel import to_mandel
     from material._cpa_plane import induced_tensor, plane_strengths
-    from material.cpa_reference import _Law
+    from material.cpa_reference import _Law, rate_coupling
 
     model, d, state = _replay_file("near_failure_point.npz")
     law = model._law
@@ -261,27 +261,10 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
     chosen = {int(a) for a in np.flatnonzero(ws.select)}
     # the rate problem by the reference: b_a = d etah_a / d sigma (complex step), m_a, q and H
     ref = _Law(model)
-    sig = d["stress"][0]
     ef = ref.eta_f(state["strain"][0] + d["d_strain"][0])
-    ratio, _, g = ref.planes(sig, ef)
-    eta_n = ref.hardening(kap_n, ef, 0.0)
-    on = np.flatnonzero(ratio >= eta_n - 1e-12 * (1 + eta_n))
+    on, Cb, H, _ = rate_coupling(ref, d["stress"][0], ef, kap_n, 0.0)
     assert 10 < on.size < 20
-    b = np.zeros((M, 3, 3))
-    for i in range(3):
-        for j in range(3):
-            E = np.zeros((3, 3), complex)
-            E[i, j] += 0.5e-30j
-            E[j, i] += 0.5e-30j
-            b[:, i, j] = ref.planes(sig + E, ef)[0].imag / 1e-30
-    m = 0.5 * (np.einsum("ai,aj->aij", g, model.normals) + np.einsum("aj,ai->aij", g, model.normals))
-
-    def stiff(e):
-        return 2 * ref.G * e + ref.lam * np.trace(e, axis1=-2, axis2=-1)[..., None, None] * np.eye(3)
-
-    q = np.einsum("aij,ij->a", b, stiff(d["d_strain"][0]))[on]
-    deta = ((ref.hardening(kap_n + 1e-30j * model.params.A, ef, 0.0)).imag / (1e-30 * model.params.A))[on]
-    H = np.einsum("aij,bij->ab", b[on], stiff(m[on])) * (model.weights[on] / model.params.t)[None, :] + np.diag(deta)
+    q = np.einsum("aij,ij->a", Cb, d["d_strain"][0])
     solutions = []
     for k in range(on.size + 1):
         for c in itertools.combinations(range(on.size), k):
@@ -323,6 +306,60 @@ def test_step_stabilisation_integrates_the_near_failure_point_and_vanishes_with_
     e10 = np.abs(path_end(0.02, 10) - path_end(0.0, 10)).max()
     e100 = np.abs(path_end(0.02, 100) - path_end(0.0, 100)).max()
     assert 0 < e100 < 0.2 * e10, (e10, e100)
+
+
+def _is_p_matrix(H):
+    """Every principal minor positive (enumerated: the 10-20 planes on their curves at one point)."""
+    import itertools
+
+    k = H.shape[0]
+    return all(np.linalg.det(H[np.ix_(c, c)]) > 0 for r in range(1, k + 1) for c in itertools.combinations(range(k), r))
+
+
+def test_minimal_stabilisation_is_a_floor_just_large_enough_for_a_unique_rate_problem():
+    """At the near-failure point (three rate solutions) the "minimal" stabilisation takes mu = 0.082: with
+    its floor mu U the coupling of the planes on their curves is a P-matrix (one rate solution for every
+    strain rate), with half of it not, so the floor is within a factor 2 of the least that works. The kernel's
+    mu, stress and tangent equal the reference's (which computes mu by the definition)."""
+    from material.cpa_reference import _Law, minimal_stabilisation, rate_coupling
+
+    model, d, state = _replay_file("near_failure_point.npz")
+    mini = model.replace(stabilisation="minimal")
+    s, st, D = mini.update(d["d_strain"], d["stress"], state)
+    assert (st["status"] == STATUS_OK).all()
+    mu = st["stabilisation"][0]
+    p = model.params
+    ref = _Law(mini)
+    ef = ref.eta_f(state["strain"][0] + d["d_strain"][0])
+    kap_n = state["kappa"][0]
+    on, _, H, sig_t = rate_coupling(ref, d["stress"][0], ef, kap_n, 0.0)
+    unit = ref.w / p.t * ref.G / np.maximum(sig_t, p.apex_stress)
+    assert mu == pytest.approx(minimal_stabilisation(ref, d["stress"][0], ef, kap_n, 0.0, unit), rel=1e-9)
+    assert 0.06 < mu < 0.12, mu
+    U = np.diag(unit[on])
+    assert not _is_p_matrix(H)
+    assert _is_p_matrix(H + mu * U) and not _is_p_matrix(H + 0.5 * mu * U)
+    s_ref, _, _, D_ref = update_point(mini, d["d_strain"], d["stress"], state, point=0)
+    np.testing.assert_allclose(s[0], s_ref, atol=1e-10 * np.abs(s_ref).max())
+    np.testing.assert_allclose(D[0], D_ref, atol=1e-9 * np.abs(D_ref).max())
+
+
+def test_minimal_stabilisation_leaves_a_uniquely_solvable_path_to_the_thesis_law():
+    """Along an element path to 97 % mobilisation every step's rate problem is uniquely solvable: the
+    minimal stabilisation's mu is 0 at every step and the stress is the thesis's law's to the bit (the
+    uniform mu = 0.02 moves it)."""
+    ends = {}
+    for mu in ("minimal", 0.0, 0.02):
+        m = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0), stabilisation=mu)
+        sig = -100.0 * np.eye(3)[None]
+        st = m.initial_state(1, stress=sig[0])
+        for _ in range(40):
+            sig, st, _ = m.update((2 * DE)[None], sig, st, tangent=False)
+            assert st["stabilisation"][0] == (0.02 if mu == 0.02 and st["iterations"][0] > 0 else 0.0)
+        ends[mu] = (sig[0], st["mobilised_ratio"][0])
+    assert ends["minimal"][1] > 0.97
+    np.testing.assert_array_equal(ends["minimal"][0], ends[0.0][0])
+    assert np.abs(ends[0.02][0] - ends[0.0][0]).max() > 1e-3
 
 
 def test_step_stabilisation_relaxes_in_proportion_to_the_step_so_the_update_is_continuous_at_zero():
@@ -497,8 +534,10 @@ def test_bad_construction_is_named():
         CPAModel("ottawa_c109", max_halvings=31)
     with pytest.raises(ValueError, match="tol"):
         CPAModel("ottawa_c109", tol=0.1)
-    with pytest.raises(ValueError, match="stabilisation = -0.1: allowed 0 <= stabilisation <= 1"):
-        CPAModel("ottawa_c109", stabilisation=-0.1)
+    for bad in (-0.1, "maximal", float("nan"), None):
+        with pytest.raises(ValueError, match=f"stabilisation = {bad!r}: allowed a number 0 <= mu <= 1 or 'minimal'"):
+            CPAModel("ottawa_c109", stabilisation=bad)
+    assert CPAModel("ottawa_c109", stabilisation=" Minimal").options.stabilisation == "minimal"
 
 
 def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one():
