@@ -387,10 +387,17 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
             if h == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
             slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, h * A)  # (2.16) inverted
-            if slip < -_ON_CURVE * (A + kn) or (slip <= 0.0 and not pt.select[a]):
-                kp = 0.0  # elastic (below its curve, or on it with the elastic branch chosen)
-            if slip <= 0.0:
+            on_kink = abs(slip) <= _ON_CURVE * (A + kn)
+            if slip < 0.0 or (on_kink and not pt.select[a]):
+                # elastic: below its curve, or on its kink with the elastic branch chosen. A plane that loaded
+                # in the last step sits on its kink at sigma_n with a slip of round-off size and either sign:
+                # it takes the chosen branch, value and derivative alike (measured: with its round-off slip
+                # positive it kept the loading derivative against the rate problem's choice, the Newton
+                # direction did not descend, and a footing point at 0.3 kPa failed for every fraction of its
+                # step)
                 slip = 0.0
+                if not on_kink or not pt.select[a]:
+                    kp = 0.0
             dk[a] = slip
             cb = kp
         plane[_P_SLIP, a] = slip

@@ -17,9 +17,7 @@ The one rule for the deposition angle: a CPA law built here gets the material ax
 them (the deposition axis e2, up to its sign), so the angle recorded next to a result is the angle the
 law used. An object without axes (an isotropic law) accepts any ``alpha_deg``. The CPA options
 ``rule``, ``stabilisation``, ``nonlocal_length`` / ``over_nonlocal`` (the implicit gradient) and ``regularise`` (the crack-band scaling of the softening by the element
-size, :class:`material.cpa.CPAModel`) apply only to a law built here. Where none is given, a CPA law built
-here gets ``default_stabilisation``: 0 (the thesis's law) for the element drivers, ``"minimal"`` for the
-boundary-value cases (:func:`femgran.cases.base.build_problem`; ``docs/cpa_law.md``, section 4).
+size, :class:`material.cpa.CPAModel`) apply only to a law built here.
 
 Frames: ``plane_strain=False`` has the vertical along z (e2 = (sin a, 0, cos a),
 :func:`material.anisotropy.axes_from_alpha`), ``plane_strain=True`` along y with z out of plane
@@ -82,7 +80,7 @@ def _parameters(spec):
     return None
 
 
-def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path, default_stabilisation=0.0):
+def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
     """The material of a mapping spec (module docstring), checked key by key."""
     import material as mlib
 
@@ -103,7 +101,7 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path, default_stabi
         return make_material(with_changes(params, spec.get("set") or {}), alpha_deg=alpha_deg,
                              plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"),
                              regularise=spec.get("regularise"), nonlocal_length=spec.get("nonlocal_length"),
-                             over_nonlocal=spec.get("over_nonlocal"), default_stabilisation=default_stabilisation)
+                             over_nonlocal=spec.get("over_nonlocal"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
     if law == "von_mises" and ("length_m" in spec or "over_nonlocal" in spec):
         cls = mlib.GradientVonMises  # softening regularised by an implicit gradient of length length_m
@@ -115,19 +113,15 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path, default_stabi
 
 def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bool = False,
                   rule: str | None = None, stabilisation: float | None = None, regularise: bool | None = None,
-                  nonlocal_length: float | None = None, over_nonlocal: float | None = None, base: Path = Path("."),
-                  default_stabilisation: float | str = 0.0):
+                  nonlocal_length: float | None = None, over_nonlocal: float | None = None, base: Path = Path(".")):
     """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``).
-    ``base``: the folder a parameter file named in a mapping spec is relative to; ``default_stabilisation``:
-    the CPA law's stabilisation where neither ``stabilisation`` nor the spec gives one."""
+    ``base``: the folder a parameter file named in a mapping spec is relative to."""
     if isinstance(spec, Mapping):
-        return _from_mapping(spec, alpha_deg, plane_strain, Path(base), default_stabilisation)
+        return _from_mapping(spec, alpha_deg, plane_strain, Path(base))
     params = _parameters(spec)
     if params is not None:
         from material.cpa import CPAModel  # the CPA kernel is the heavy import
 
-        if stabilisation is None:
-            stabilisation = default_stabilisation
         options = {k: v for k, v in (("rule", rule), ("stabilisation", stabilisation), ("regularise", regularise),
                                      ("nonlocal_length", nonlocal_length), ("over_nonlocal", over_nonlocal))
                    if v is not None}

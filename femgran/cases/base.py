@@ -171,15 +171,11 @@ def case_record(case) -> dict:
 
 def build_problem(case, material=None, out_dir=None) -> Problem:
     """The case's :class:`Problem` for ``material`` (anything :func:`material.factory.make_material` takes),
-    with the case's drainage; failed points write their replay files under ``out_dir`` (None: nowhere).
-    A CPA law built here from a preset, parameters or a ``[material]`` table that names no
-    ``stabilisation`` gets the ``"minimal"`` one: the thesis's law wherever its response is unique, and
-    the least floor that makes it so elsewhere (``docs/cpa_law.md``, section 4)."""
+    with the case's drainage; failed points write their replay files under ``out_dir`` (None: nowhere)."""
     from femgran.cases.common import keep_failed_points
     from material.factory import make_material
 
-    mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain,
-                        default_stabilisation="minimal")
+    mat = make_material(material, alpha_deg=getattr(case, "alpha_deg", None), plane_strain=case.plane_strain)
     problem = case.build(mat if out_dir is None else keep_failed_points(mat, out_dir))
     if getattr(case, "drainage", "drained") == "undrained":
         from material.undrained import Undrained

@@ -12,7 +12,7 @@ Format (four tables, each checked against the dataclass it fills)::
     preset = "ottawa_c109"        # cpa: a preset name, or parameters = "my_sand.toml"
     rule = "bazant-oh-33"         # cpa: integration rule of the planes
     set = { beta = 5.0 }          # cpa: parameters to change (CPAParameters.replace)
-    stabilisation = 0.1           # cpa: the step stabilisation of CPAModel (default "minimal"; 0: the thesis's law)
+    stabilisation = 0.1           # cpa: the step stabilisation of CPAModel (default 0: the thesis's law)
     nonlocal_length = 0.006       # cpa with softening: the implicit gradient's length l [m] (not the crack band)
     # von_mises: E_kPa, nu, yield_stress_kPa, hardening_kPa (and length_m, over_nonlocal: the gradient law)
     # drucker_prager: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg, match, hardening_kPa
@@ -78,8 +78,7 @@ def build_material(spec: dict | None, alpha_deg: float, plane_strain: bool, base
     """The material object of a ``[material]`` table (None: the case default), :func:`material.factory.make_material`."""
     from material.factory import make_material
 
-    return None if spec is None else make_material(spec, alpha_deg=alpha_deg, plane_strain=plane_strain, base=base,
-                                                   default_stabilisation="minimal")  # as build_problem's
+    return None if spec is None else make_material(spec, alpha_deg=alpha_deg, plane_strain=plane_strain, base=base)
 
 
 def _legacy(doc: dict, where: str) -> dict:

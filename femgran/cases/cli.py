@@ -40,9 +40,7 @@ def _material(args) -> dict:
     """The ``[material]`` table of the flags (:func:`material.factory.make_material` takes it as it is, and
     the run folder's ``case.toml`` records it for ``femgran run --resume``)."""
     if args.law == "cpa":
-        spec = {"law": "cpa", "set": parse_set(args.set)}
-        if args.stabilisation is not None:
-            spec["stabilisation"] = args.stabilisation
+        spec = {"law": "cpa", "set": parse_set(args.set), "stabilisation": args.stabilisation}
         spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
         if args.nonlocal_length is not None:
             spec["nonlocal_length"] = args.nonlocal_length
@@ -72,10 +70,10 @@ def _material_flags(p):
     g = p.add_argument_group("material")
     g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "linear_elastic"], default="cpa")
     add_parameters(g)
-    g.add_argument("--stabilisation", type=_stabilisation, default=None, metavar="MU",
-                   help="CPA step stabilisation: a number 0 <= MU <= 1 (0: the thesis's law), or 'minimal' (the "
-                        "default: the thesis's law wherever its response is unique, and each point's least MU "
-                        "for a unique response elsewhere; docs/cpa_law.md section 4)")
+    g.add_argument("--stabilisation", type=_stabilisation, default=0.0, metavar="MU",
+                   help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
+                        "carry a footing to its end; 'minimal': each point's least MU for a unique rate problem, "
+                        "docs/cpa_law.md section 4)")
     g.add_argument("--nonlocal-length", type=float, default=None, metavar="L",
                    help="CPA with post-peak softening: regularise it by the implicit gradient of length L [m] "
                         "instead of the crack band (docs/regularisation.md)")

@@ -51,22 +51,18 @@ def test_run_json_records_the_command_and_the_options(tmp_path):
     assert record["runs"][0]["completed"] is True and "femgran_version" in record
 
 
-def test_the_cases_build_the_cpa_law_with_the_minimal_stabilisation_unless_told(capsys):
-    """The boundary-value cases' CPA law is the thesis's law wherever its response is unique ("minimal"
-    stabilisation, docs/cpa_law.md section 4) unless the flag or the [material] table says otherwise; the
-    element drivers keep the thesis's law."""
+def test_the_stabilisation_flag_takes_a_number_or_minimal(capsys):
+    """--stabilisation reaches the case's CPA law as a number or "minimal" (docs/cpa_law.md section 4); the
+    default is the thesis's law; anything else is refused with the allowed values."""
     from femgran.cases import Footing
     from femgran.cases.base import build_problem
     from femgran.cases.cli import _material
-    from material.factory import make_material
 
     parser = build_parser()
     case = Footing(resolution=1)
-    for flags, expected in (([], "minimal"), (["--stabilisation", "minimal"], "minimal"),
-                            (["--stabilisation", "0.1"], 0.1), (["--stabilisation", "0"], 0.0)):
+    for flags, expected in (([], 0.0), (["--stabilisation", "minimal"], "minimal"), (["--stabilisation", "0.1"], 0.1)):
         spec = _material(parser.parse_args(["footing", *flags]))
         assert build_problem(case, spec).material.options.stabilisation == expected, flags
-    assert make_material("ottawa_c109").options.stabilisation == 0.0
     with pytest.raises(SystemExit):
         parser.parse_args(["footing", "--stabilisation", "maximal"])
     assert "'maximal': allowed a number 0 <= MU <= 1 or 'minimal'" in capsys.readouterr().err
