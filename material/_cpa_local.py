@@ -749,8 +749,8 @@ def _rate_active_set(law, pt, ws):
 
 #: The minimal stabilisation takes its bound on mu this much larger: the bound makes the symmetric part of
 #: the scaled coupling positive semi-definite only, and the coupling moves with the stress within the step.
-#: (At the near-failure point of the tests the bound is 0.075 and the coupling is a P-matrix from mu = 0.06:
-#: the bound itself is conservative there.)
+#: (At the near-failure point of the tests the bound is 0.075 and the coupling becomes a P-matrix between
+#: mu = 0.04 and 0.06: the bound itself is conservative there.)
 _FLOOR_MARGIN = 1.1
 
 
