@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from material._cpa_local import _ratios, make_workspace, plane_data, point_update
-from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
+from material._cpa_local import Point, _ratios, _uniqueness_floor, make_workspace, plane_data, point_update
+from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths, plane_stress
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -50,6 +50,37 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
             opening[p] = dl
             mobilised[p] = best
             floor_mu[p] = mu
+
+
+@njit(cache=True, error_model="numpy")
+def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
+    """The least mu of the step stabilisation for which the rate problem of each of N committed states is
+    uniquely solvable by the sufficient condition of :func:`material._cpa_local._uniqueness_floor` (0 where
+    the thesis's law is), into ``out`` (N,). sig_n, eps_n (N, 6) Mandel, kap_n (N, M), soft (N,).
+    (The implicit gradient's shifts are left out: the planes past their peak take their local level.)
+    Serial: a diagnostic, and the same loop under ``parallel=True`` returned 0.0825 instead of 0.0822 at the
+    near-failure point of the tests (the serial loop, the Python execution of it and the update agree)."""
+    N = sig_n.shape[0]
+    M = kap_n.shape[1]
+    g_mod = 0.5 / law.comp[5, 5]
+    ws = make_workspace(M)
+    lam6 = np.empty(6)
+    unit = np.empty(M)
+    zero6 = np.zeros(6)
+    no_shift = np.zeros(M)
+    for p in range(N):
+        induced_tensor(eps_n[p], law.beta, law.alpha_hat, law.beta_hat, lam6)
+        plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
+        for a in range(M):
+            ws.shift[a] = law.cohesion[a] / ws.eta_f[a] + law.apex_stress
+            ws.strong[a] = kap_n[p, a] > law.A or (soft[p] > 0.0 and kap_n[p, a] >= law.kstar)
+            ws.post[a] = False
+            ws.floor[a] = 0.0
+            sigma_t = plane_stress(sig_n[p], law.normals[a], ws.shift[a], law.rounding)[0]
+            unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+        pt = Point(sig_n[p], zero6, kap_n[p], soft[p], ws.eta_f, ws.shift, ws.strong, ws.select, ws.floor, 1.0,
+                   ws.post, False, 0.0, 0.0, no_shift)
+        out[p] = _uniqueness_floor(law, pt, ws, unit)
 
 
 @njit(cache=True, error_model="numpy")

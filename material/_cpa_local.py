@@ -812,7 +812,7 @@ def _uniqueness_floor(law, pt, ws, unit):
         # update); it overwrites S, which the second sweep makes again for the eigenvalue
         if sweep == 0 and _cholesky_succeeds(S):
             return 0.0
-    lmin = np.linalg.eigvalsh(S)[0]
+    lmin = np.linalg.eigvalsh(np.ascontiguousarray(S))[0]
     return _FLOOR_MARGIN * max(0.0, -lmin)
 
 

@@ -319,6 +319,23 @@ class CPAModel:
             return np.full(n, p.softening_slip)
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
+    def uniqueness_floor(self, stress, state: State) -> np.ndarray:
+        """The least mu of the step stabilisation for which the rate problem of each committed state (stress,
+        state) is uniquely solvable by the sufficient condition of the ``"minimal"`` stabilisation, (N,):
+        0 where the thesis's law has one response to every strain rate, and otherwise how far the point is from
+        it (``docs/cpa_law.md``, section 4). A diagnostic of where and how much the law loses uniqueness (what
+        ``femgran replay`` prints for a stopped run); it does not see planes that join within a step."""
+        n = np.asarray(state["kappa"]).shape[0] if "kappa" in state else 0
+        sig = as_stress_batch(stress, n)
+        check_state(state, n, _STATE_KEYS)
+        kap = np.ascontiguousarray(state["kappa"], dtype=float)
+        if kap.shape != (n, self.n_planes):
+            raise ValueError(f"state['kappa']: shape {kap.shape} does not match ({n}, {self.n_planes})")
+        out = np.empty(n)
+        _k.uniqueness_floors(self._law, _k.to_mandel(sig), _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float)),
+                             kap, self._softening_scale(state, n), out)
+        return out
+
     # ----------------------------------------------------------------------------- update
     @property
     def rate_dependent(self) -> bool:

@@ -259,6 +259,7 @@ def _replay(args) -> int:
               f"most failed points {int(np.nanmax(log['failed_points'][rows]))}, most switching points "
               f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
     _print_zero_step_drift(case, material, last)
+    _print_uniqueness(case, material, last)
     replays = sorted((dest / "failed_points").glob("*.npz"))
     print(f"  {len(replays)} replay file(s) of failed points in {dest / 'failed_points'} (material.cpa.replay)"
           if replays else "  no material point failed")
@@ -287,6 +288,33 @@ def _print_zero_step_drift(case, material, checkpoint) -> None:
               + ("" if f == 1.0 or not moved.any() else
                  " (the committed state is not the step problem's solution as the step vanishes: cut-backs cannot "
                  "reach an equilibrium next to it)"))
+
+
+def _print_uniqueness(case, material, checkpoint) -> None:
+    """Where the CPA law's rate problem at the checkpoint's committed state has no unique solution, and the
+    least uniform step stabilisation that would restore it there (:meth:`material.CPAModel.uniqueness_floor`;
+    a sufficient condition, blind to planes that join within a step)."""
+    from femgran import checkpoint as ck
+    from femgran.cases.base import build_problem
+
+    problem = build_problem(case, material)
+    law = problem.material
+    while not hasattr(law, "uniqueness_floor") and hasattr(law, "law"):  # (the undrained wrapper)
+        law = law.law
+    if not hasattr(law, "uniqueness_floor"):
+        return
+    arrays = ck.load(checkpoint)[0]
+    state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
+    mu = law.uniqueness_floor(arrays["stress"], state)
+    lost = mu > 0.0
+    if not lost.any():
+        print(f"  the rate problem of every one of the {mu.size} points is uniquely solvable at the checkpoint")
+        return
+    worst = int(np.argmax(mu))
+    p = -np.trace(arrays["stress"][worst]) / 3.0
+    print(f"  the rate problem has no unique solution (by the sufficient condition) at {int(lost.sum())} of {mu.size} "
+          f"points; the least step stabilisation that restores it there is up to mu = {mu[worst]:.3g} (point {worst}, "
+          f"mean stress {p:.3g} kPa; the run's stabilisation: {law.options.stabilisation!r})")
 
 
 def register(subparsers) -> None:

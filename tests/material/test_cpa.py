@@ -344,6 +344,21 @@ def test_minimal_stabilisation_is_a_floor_just_large_enough_for_a_unique_rate_pr
     np.testing.assert_allclose(D[0], D_ref, atol=1e-9 * np.abs(D_ref).max())
 
 
+def test_uniqueness_floor_of_committed_states_is_the_minimal_stabilisation():
+    """CPAModel.uniqueness_floor (what `femgran replay` prints for a stopped run) gives each committed state
+    the mu the minimal stabilisation takes in its next step: 0.082 at the near-failure point, 0 at an
+    in-situ state inside its elastic range; a state of another rule is refused."""
+    model, d, state = _replay_file("near_failure_point.npz")
+    mu = model.uniqueness_floor(d["stress"], state)
+    _, st, _ = model.replace(stabilisation="minimal").update(d["d_strain"], d["stress"], state)
+    np.testing.assert_allclose(mu, st["stabilisation"], rtol=1e-12)  # (beta = 0: eta_f does not move in a step)
+    assert 0.06 < mu.min()
+    fresh = model.initial_state(3, stress=-100.0 * np.eye(3))
+    np.testing.assert_array_equal(model.uniqueness_floor(-100.0 * np.eye(3), fresh), 0.0)
+    with pytest.raises(ValueError, match=r"state\['kappa'\]: shape \(2, 33\) does not match \(2, 21\)"):
+        CPAModel("ottawa_c109", rule="bazant-oh-21").uniqueness_floor(d["stress"], state)
+
+
 def test_minimal_stabilisation_leaves_a_uniquely_solvable_path_to_the_thesis_law():
     """Along an element path to 97 % mobilisation every step's rate problem is uniquely solvable: the
     minimal stabilisation's mu is 0 at every step and the stress is the thesis's law's to the bit (the
