@@ -19,8 +19,10 @@ zone, W/6 by W/3 at the bottom-left corner, on 6, 12, 18, 24 ... elements across
 The band: measured in the increment of the deviatoric strain between the peak and the last converged
 step (:func:`femgran.band.measure_band`, the bump's own neighbourhood left out): ``band_angle_deg``,
 ``band_thickness_m`` (full width at half maximum of the profile across it), ``band_centre_m``,
-``band_contrast`` and ``localised`` in the summary, and ``band.png`` (the field with the band drawn, the
-profile with its fit). ``band_angle_deg`` is the angle between the band and the
+``band_contrast`` and ``localised`` in the summary, the same of the conjugate arm (the best band of the
+other family of orientations, :func:`femgran.band.measure_arms`) as ``conjugate_band_angle_deg`` ...
+``conjugate_localised``, and ``band.png`` (the field with the band and its conjugate's centre line drawn,
+the profile with its fit). ``band_angle_deg`` is the angle between the band and the
 minor principal (lateral, x) stress direction, to compare with Coulomb 45 + phi/2, Roscoe 45 + psi/2 and Arthur
 45 + (phi + psi)/4 (``reference_angles_deg``), phi and psi the peak mobilised friction and dilatancy
 angles from the global response: sin phi = (s1 - s3) / (s1 + s3), sin psi = -(d eps_v) / (d eps_1 - d eps_3)
@@ -44,7 +46,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.band import Band, measure_band
+from femgran.band import Band, measure_arms, measure_band
 from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet, PathControl
@@ -176,13 +178,15 @@ class Biaxial(Drainage):
             return _peak_and_band(sol, problem.data, problem.disc, float(self.p0_kPa), float(self.width_m),
                                   2 * float(self.width_m), float(self.imperfection))
         nan = float("nan")  # no converged step: nothing to measure
-        return dict(**Band.none().summary(), peak_friction_deg=nan, peak_dilatancy_deg=nan,
+        return dict(**Band.none().summary(), **Band.none().summary("conjugate_"), peak_friction_deg=nan,
+                    peak_dilatancy_deg=nan,
                     peak_q_kPa=nan, reference_angles_deg={"coulomb": nan, "roscoe": nan, "arthur": nan})
 
     def plots(self, sol, problem, out_dir: Path) -> None:
         _plots(sol, out_dir)
         if "band" in problem.data:
-            _band_plot(*problem.data["band"], out_dir / "band.png")
+            band, points, intensity, conjugate = problem.data["band"]
+            _band_plot(band, points, intensity, out_dir / "band.png", conjugate)
 
 
 def biaxial(material=None, p0_kPa: float = 100.0, alpha_deg: float = 0.0, *, width_m: float = 0.05,
@@ -284,9 +288,9 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
     gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
     h_el = float(d.element_size().max())
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
-    band = measure_band(xq, gamma, element_size=h_el, exclude=exclude)
-    data["band"] = (band, xq, gamma)  # for the band plot
-    return dict(**band.summary(), peak_friction_deg=phi, peak_dilatancy_deg=psi, peak_q_kPa=q_max,
+    band, conjugate = measure_arms(xq, gamma, element_size=h_el, exclude=exclude)
+    data["band"] = (band, xq, gamma, conjugate)  # for the band plot
+    return dict(**band.summary(), **conjugate.summary("conjugate_"), peak_friction_deg=phi, peak_dilatancy_deg=psi, peak_q_kPa=q_max,
                 reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
 
 
@@ -322,9 +326,10 @@ def _regularisation(mat) -> str:
     return "none (no softening in the material)"
 
 
-def _band_plot(band: Band, points, intensity, path: Path) -> None:
-    """The strain increment after the peak with the measured band (centre line, +- half its thickness), and
-    the profile across it with its fit; PNG and CSV (:func:`material.plotting.save_figure`)."""
+def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None = None) -> None:
+    """The strain increment after the peak with the measured band (centre line, +- half its thickness) and
+    the centre line of its conjugate arm, and the profile across the band with its fit; PNG and CSV
+    (:func:`material.plotting.save_figure`)."""
     import matplotlib.pyplot as plt
 
     from material.plotting import save_figure
@@ -340,6 +345,12 @@ def _band_plot(band: Band, points, intensity, path: Path) -> None:
         for k, (off, label) in enumerate(((0.0, "band centre line"), (0.5, "half thickness"), (-0.5, None))):
             a, b = c + off * half * n - L * t, c + off * half * n + L * t
             ax.plot([a[0], b[0]], [a[1], b[1]], style, color="k" if k == 0 else "r", lw=1.2, label=label)
+        if conjugate is not None and np.isfinite(conjugate.angle_deg):
+            t2, c2 = np.asarray(conjugate.direction), np.asarray(conjugate.centre)
+            a, b = c2 - L * t2, c2 + L * t2
+            ax.plot([a[0], b[0]], [a[1], b[1]], "--" if conjugate.localised else ":", color="w", lw=1.2,
+                    label=f"conjugate arm, {conjugate.angle_deg:.1f} deg"
+                          + (f", {1e3 * conjugate.thickness_m:.2f} mm" if conjugate.localised else ""))
         ax.set_xlim(points[:, 0].min(), points[:, 0].max())
         ax.set_ylim(points[:, 1].min(), points[:, 1].max())
         dist, mean, fit = band.profile

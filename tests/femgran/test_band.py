@@ -106,3 +106,24 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
     flat = run(Biaxial(resolution=8, platens="smooth", imperfection=0.0, axial_strain=0.05, steps=20),
                "ottawa_c109", output=Output(tmp_path / "flat", plots=False))
     assert flat.completed and not flat.localised and flat.band_contrast < 0.3 and np.isnan(flat.band_thickness_m)
+
+
+def test_both_arms_of_an_x_are_measured_with_their_own_thickness():
+    """measure_arms: the stronger arm and the conjugate one, each with its angle, thickness and centre; a
+    single band has no conjugate band."""
+    from femgran.band import measure_arms
+
+    rng = np.random.default_rng(5)
+    w = 0.2 + 1.2 * _band(57.0, 0.008) + _band(135.0, 0.005, (0.03, 0.045)) + 0.05 * rng.standard_normal(len(POINTS))
+    first, second = measure_arms(POINTS, w, element_size=h)
+    assert first.rising and not second.rising
+    assert first.localised and first.angle_deg == pytest.approx(57.0, abs=1.5)
+    assert second.localised and second.angle_deg == pytest.approx(45.0, abs=1.5)
+    assert first.thickness_m == pytest.approx(0.008, rel=0.2) and second.thickness_m == pytest.approx(0.005, rel=0.2)
+    n = np.array([-second.direction[1], second.direction[0]])
+    assert abs((np.asarray(second.centre) - (0.03, 0.045)) @ n) < h / 2
+    single = 0.2 + _band(60.0, 0.006) + 0.05 * rng.standard_normal(len(POINTS))
+    one, other = measure_arms(POINTS, single, element_size=h)
+    assert one.localised and not other.localised
+    with pytest.raises(ValueError, match=r"family = 'up': allowed \['both', 'rising', 'falling'\]"):
+        measure_band(POINTS, single, element_size=h, family="up")
