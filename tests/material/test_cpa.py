@@ -347,7 +347,8 @@ def test_minimal_stabilisation_is_a_floor_just_large_enough_for_a_unique_rate_pr
 def test_uniqueness_floor_of_committed_states_is_the_minimal_stabilisation():
     """CPAModel.uniqueness_floor (what `femgran replay` prints for a stopped run) gives each committed state
     the mu the minimal stabilisation takes in its next step: 0.082 at the near-failure point, 0 at an
-    in-situ state inside its elastic range; a state of another rule is refused."""
+    in-situ state inside its elastic range; a state of another rule is refused; on 200 points the update's
+    parallel batch agrees."""
     model, d, state = _replay_file("near_failure_point.npz")
     mu = model.uniqueness_floor(d["stress"], state)
     _, st, _ = model.replace(stabilisation="minimal").update(d["d_strain"], d["stress"], state)
@@ -357,6 +358,15 @@ def test_uniqueness_floor_of_committed_states_is_the_minimal_stabilisation():
     np.testing.assert_array_equal(model.uniqueness_floor(-100.0 * np.eye(3), fresh), 0.0)
     with pytest.raises(ValueError, match=r"state\['kappa'\]: shape \(2, 33\) does not match \(2, 21\)"):
         CPAModel("ottawa_c109", rule="bazant-oh-21").uniqueness_floor(d["stress"], state)
+    # the update's parallel batch takes the same mu as this serial loop, point by point (the same loop under
+    # parallel=True once did not: 0.0825 for 0.0822), with increments of 0.2 to 1.5 times the stored one
+    reps = 100
+    many = {k: np.repeat(v, reps, axis=0) if np.ndim(v) and np.shape(v)[0] == 2 else v for k, v in state.items()}
+    sig = np.repeat(d["stress"], reps, axis=0)
+    scale = np.linspace(0.2, 1.5, 2 * reps)[:, None, None]
+    _, st_many, _ = model.replace(stabilisation="minimal").update(np.repeat(d["d_strain"], reps, axis=0) * scale, sig,
+                                                                  many, tangent=False)
+    np.testing.assert_allclose(st_many["stabilisation"], model.uniqueness_floor(sig, many), rtol=1e-12)
 
 
 def test_minimal_stabilisation_leaves_a_uniquely_solvable_path_to_the_thesis_law():
