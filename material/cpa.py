@@ -110,7 +110,9 @@ class CPAModel:
         the coupling matrix of its planes on their curves is a P-matrix by a sufficient condition (its
         rate problem has one solution): 0 wherever the thesis's law is uniquely solvable, so the law is
         changed only at the points where it has no unique response (``state["stabilisation"]`` records
-        each point's mu).
+        each point's mu). Measured, it does not carry the thesis-sand footings: points lose uniqueness
+        through planes that join within a step, which the start of the step does not show
+        (``docs/cpa_law.md``, section 4); 0.1 does.
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -332,8 +334,8 @@ class CPAModel:
         if kap.shape != (n, self.n_planes):
             raise ValueError(f"state['kappa']: shape {kap.shape} does not match ({n}, {self.n_planes})")
         out = np.empty(n)
-        _k.uniqueness_floors(self._law, _k.to_mandel(sig), _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float)),
-                             kap, self._softening_scale(state, n), out)
+        eps6 = _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float))
+        _k.uniqueness_floors(self._law, _k.to_mandel(sig), eps6, kap, self._softening_scale(state, n), out)
         return out
 
     # ----------------------------------------------------------------------------- update

@@ -290,8 +290,8 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
     band, conjugate = measure_arms(xq, gamma, element_size=h_el, exclude=exclude)
     data["band"] = (band, xq, gamma, conjugate)  # for the band plot
-    return dict(**band.summary(), **conjugate.summary("conjugate_"), peak_friction_deg=phi, peak_dilatancy_deg=psi, peak_q_kPa=q_max,
-                reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
+    return dict(**band.summary(), **conjugate.summary("conjugate_"), peak_friction_deg=phi, peak_dilatancy_deg=psi,
+                peak_q_kPa=q_max, reference_angles_deg={"coulomb": 45 + phi / 2, "roscoe": 45 + psi / 2, "arthur": 45 + (phi + psi) / 4})
 
 
 def _with_weak_zone(mat, weak: float, d, size: float, W: float, y0: float):
