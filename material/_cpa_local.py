@@ -884,9 +884,12 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     # over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
     g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
     unit = ws.floor0
+    stabilised = opt.minimal or opt.stabilisation > 0.0
     for a in range(M):
-        sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
-        unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+        unit[a] = 0.0  # (the thesis's law: no floor, and no plane stresses computed for it)
+        if stabilised:
+            sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
+            unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
         ws.floor[a] = 0.0
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
                m_over, nl_shift)
