@@ -79,7 +79,7 @@ def point_fields(solver) -> dict[str, np.ndarray]:
     dev = s + p[:, None, None] * np.eye(3)
     out["p_kPa"] = p[:, None]
     out["q_kPa"] = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))[:, None]
-    for key in ("mobilised_ratio", "stabilisation", "eq_plastic_strain", "pore_pressure_kPa"):
+    for key in ("mobilised_ratio", "stabilisation", "overstress", "eq_plastic_strain", "pore_pressure_kPa"):
         if key in st:
             out[key] = np.asarray(st[key], float).reshape(-1, 1)
     if "kappa" in st:

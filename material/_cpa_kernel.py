@@ -17,7 +17,7 @@ from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths, plan
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
-              grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu):
+              grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu, overstress):
     """Update N Gauss points (Mandel vectors), in parallel over chunks of points.
 
     Inputs: ``law`` (:class:`material._cpa_local.Law`), ``opt`` (:class:`material._cpa_local.Options`),
@@ -30,7 +30,8 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
     (:func:`material._cpa_local.point_update`), status (N,) int8, iterations and halvings (N,) int32,
     reached (N,) the fraction of the increment a failed point reached (1 otherwise), opening (N,) plastic
     volumetric opening of the cut-off, mobilised (N,) the largest etah_a / eta_f,a, floor_mu (N,) the mu of the
-    step stabilisation's floor at each point.
+    step stabilisation's floor at each point, overstress (N,) the stabilisation's overstress (the largest part
+    h_a dkappa_a / etah_a of a loading plane's mobilised ratio that the floor carries).
     """
     N = sig_n.shape[0]
     M = kap_n.shape[1]
@@ -40,7 +41,7 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
         ws = make_workspace(M)
         pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
-            st, its, hv, lam, dl, best, mu = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
+            st, its, hv, lam, dl, best, mu, over = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
                                                       c0[p], m_over, nl_shift[p], sig_out[p], kap_out[p], D_out[p],
                                                       loading[p], grad_out[p], ws)
             status[p] = st
@@ -50,6 +51,7 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
             opening[p] = dl
             mobilised[p] = best
             floor_mu[p] = mu
+            overstress[p] = over
 
 
 @njit(cache=True, error_model="numpy")

@@ -829,7 +829,9 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     (S the sum of the slip increments of the planes past their peak; zeros without the gradient, the
     derivatives only with ``opt.tangent``). Returns (status, Newton iterations, continuation halvings, the
     fraction of the increment reached (1 unless failed), opening dlambda of the cut-off, largest
-    etah_a / eta_f,a at the end, the mu of the step stabilisation's floor (0 at an elastic point)).
+    etah_a / eta_f,a at the end, the mu of the step stabilisation's floor (0 at an elastic point), the
+    stabilisation's overstress: the largest h_a dkappa_a / etah_a of the loading planes, the part of a plane's
+    mobilised ratio that the floor carries above its hardening curve (0 without the stabilisation)).
     """
     M = kap_n.shape[0]
     vecs = ws.vecs
@@ -870,7 +872,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
             for i in range(6):
                 for j in range(6):
                     D_out[i, j] = law.stiff[i, j]
-        return OK, 0, 0, 1.0, 0.0, best, 0.0
+        return OK, 0, 0, 1.0, 0.0, best, 0.0, 0.0
     # the strain scale of the point: the increment, or the elastic strain of its stress
     smax = law.apex_stress
     dmax = 0.0
@@ -947,20 +949,23 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
                 for a in range(M):
                     kap_out[a] = kap_n[a]
                     loading[a] = False
-                return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu
+                return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu, 0.0
     # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
+    over = 0.0
     for a in range(M):
         slip = plane[_P_SLIP, a]
         kap_out[a] = kap_n[a] + max(slip, 0.0)
         loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
         best = max(best, plane[_P_RATIO, a] / eta_f[a])
+        if slip > 0.0:  # the floor's share of the plane's ratio: etah = eta(kappa) + h dkappa (ws.floor: lam = 1)
+            over = max(over, ws.floor[a] * slip / plane[_P_RATIO, a])
     for i in range(6):
         sig_out[i] = sig[i]
     grad_out[0] = s_done
     if opt.tangent:
         _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out)
-    return OK, total_its, halvings, 1.0, dl_done, best, mu
+    return OK, total_its, halvings, 1.0, dl_done, best, mu, over
 
 
 @njit(cache=True, error_model="numpy")

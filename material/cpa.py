@@ -112,7 +112,9 @@ class CPAModel:
         changed only at the points where it has no unique response (``state["stabilisation"]`` records
         each point's mu). Measured, it does not carry the thesis-sand footings: points lose uniqueness
         through planes that join within a step, which the start of the step does not show
-        (``docs/cpa_law.md``, section 4); 0.1 does.
+        (``docs/cpa_law.md``, section 4); 0.1 does. ``state["overstress"]`` records what the floor
+        changes: the largest share of a loading plane's mobilised ratio it carries above the hardening
+        curve (0 for the thesis's law); compare a run with one at a smaller mu.
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -305,6 +307,8 @@ class CPAModel:
             "loading": np.zeros((n, M), dtype=bool),
             "cutoff_opening": np.zeros(n),
             "mobilised_ratio": np.zeros(n),
+            "stabilisation": np.zeros(n),
+            "overstress": np.zeros(n),
             "near_apex": np.abs(sig).max(axis=(1, 2)) <= 10.0 * self.params.apex_stress,
             "element_size": h,
             **({} if self._nonlocal_length is None else {"nonlocal": np.zeros(n), "post_peak_strain": np.zeros(n),
@@ -379,7 +383,9 @@ class CPAModel:
             mobilised_ratio (N,) the largest etah_a / eta_f,a; near_apex (N,) bool (every stress
             component below 10 apex_rounding, where the rounding changes the law by more than 1 %);
             stabilisation (N,) the mu of the step stabilisation's floor at each point in the step (0 at an
-            elastic point); element_size (N,) [m].
+            elastic point); overstress (N,) the stabilisation's overstress of the step: the largest
+            h_a dkappa_a / etah_a over the loading planes, the share of a plane's mobilised ratio above its
+            hardening curve (0 without the stabilisation; ``docs/cpa_law.md``, section 4); element_size (N,) [m].
         tangent : (N, 3, 3, 3, 3) d stress / d d_strain [kPa], or None.
         """
         de, sig = check_batch(d_strain, stress)
@@ -428,6 +434,7 @@ class CPAModel:
         opening = np.empty(n)
         mobilised = np.empty(n)
         floor_mu = np.empty(n)
+        overstress = np.empty(n)
         f = float(step_fraction) if np.ndim(step_fraction) == 0 else np.nan
         if not (np.isfinite(f) and f > 0.0):
             raise ValueError(f"step_fraction = {step_fraction!r}: allowed a finite number > 0 (the step's size in "
@@ -446,7 +453,7 @@ class CPAModel:
         try:
             _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
                          sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
-                         mobilised, floor_mu)
+                         mobilised, floor_mu, overstress)
         finally:
             if prev_threads is not None:
                 import numba
@@ -471,6 +478,7 @@ class CPAModel:
             "cutoff_opening": np.asarray(state.get("cutoff_opening", np.zeros(n))) + np.where(ok, opening, 0.0),
             "mobilised_ratio": np.where(ok, mobilised, state.get("mobilised_ratio", np.zeros(n))),
             "stabilisation": floor_mu,
+            "overstress": overstress,
             # within the rounded apex, where N differs from the normal stress by more than 1 %
             "near_apex": np.abs(sig_out).max(axis=1) <= 10.0 * self.params.apex_stress,
         }

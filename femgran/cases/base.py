@@ -298,7 +298,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
             ckpt.write(newton, newton.run_state, writer,  # the end, or the last converged step of a stop
                        {k: problem.data[k] for k in problem.persist})
         ckpt.close()  # every checkpoint on disk before the run returns
-    summary = case.summarise(sol, problem)
+    summary = {**case.summarise(sol, problem), **_overstress_summary(newton.points)}
     sol.extra.update(params=params, **summary)
     if out_dir is not None:
         from femgran.output import write_parameters
@@ -313,6 +313,20 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         raise KeyboardInterrupt(f"{sol.stop_reason}; every converged step is in {out_dir}; continue with "
                                 f"femgran run --resume {out_dir}" if out_dir is not None else sol.stop_reason)
     return sol
+
+
+def _overstress_summary(points) -> dict:
+    """What a step stabilisation changed in the last converged step (a law that is ``rate_dependent``):
+    over the points with a loading plane, the 99th percentile and the largest of ``state["overstress"]``,
+    the share of a plane's mobilised ratio that the stabilisation's floor carries above the hardening
+    curve (``docs/cpa_law.md``, section 4). Empty for other laws."""
+    over = points.state.get("overstress")
+    if over is None or not getattr(points.material, "rate_dependent", False):
+        return {}
+    loading = np.asarray(points.state["loading"]).any(axis=1)
+    o = np.asarray(over, float)[loading] if loading.any() else np.zeros(1)
+    return {"stabilisation_overstress_p99": float(np.quantile(o, 0.99)),
+            "stabilisation_overstress_max": float(o.max())}
 
 
 def _rescale_history(info: dict, scale: float, out_dir) -> None:

@@ -420,6 +420,44 @@ def test_step_stabilisation_relaxes_in_proportion_to_the_step_so_the_update_is_c
             model.update(DE[None], sig, st, step_fraction=bad)
 
 
+def _overstress_of_committed_state(model, stress, state):
+    """The share of each loading plane's mobilised ratio above its hardening curve, from the committed
+    stress and slips alone (the public ratios and strengths, the hyperbola 2.16): max_a (etah_a - eta_a) / etah_a."""
+    p = model.params
+    eta_f = model.friction_coefficients(state["strain"])
+    etah = model.mobilised_ratios(stress, state["strain"])
+    kap = state["kappa"]
+    level = p.zeta * eta_f * kap / (p.A + kap)
+    return np.where(state["loading"], (etah - level) / etah, 0.0).max(axis=1)
+
+
+def test_step_stabilisation_reports_its_overstress_and_it_shrinks_with_mu():
+    """state["overstress"] is what the floor changes: at the end of every step of a loading path it is the
+    largest share of a loading plane's mobilised ratio above the plane's hardening curve, as the committed
+    stress and slips give it independently of the kernel; 0 for the thesis's law (where etah = eta(kappa)
+    on every loading plane); about proportional to mu; 0 at an elastic (unloading) step."""
+    seen = {}
+    for mu in (0.0, 0.01, 0.1):
+        model = CPAModel("ottawa_c109", axes=axes_from_alpha(30.0), stabilisation=mu)
+        sig = -100.0 * np.eye(3)[None]
+        st = model.initial_state(1, stress=sig[0])
+        assert st["overstress"][0] == 0.0
+        over = []
+        for _ in range(25):
+            sig, st, _ = model.update(DE[None], sig, st, tangent=False)
+            assert st["status"][0] == STATUS_OK and st["loading"].any()
+            direct = _overstress_of_committed_state(model, sig, st)[0]
+            assert abs(st["overstress"][0] - direct) <= 1e-9, (mu, st["overstress"][0], direct)
+            over.append(st["overstress"][0])
+        seen[mu] = np.array(over)
+        sig, st, _ = model.update(-0.05 * DE[None], sig, st, tangent=False)  # unloading: elastic
+        assert not st["loading"].any() and st["overstress"][0] == 0.0
+    assert np.abs(seen[0.0]).max() <= 1e-10
+    assert seen[0.1].max() > 1e-3  # a finite share of the ratio along this path (0.28 % at the first step)
+    ratio = seen[0.1] / seen[0.01]
+    assert np.all((ratio > 5.0) & (ratio < 12.0)), ratio  # about proportional to mu
+
+
 def _rotation(theta, axis):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
