@@ -228,3 +228,30 @@ def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2
         s, _, _ = material.update(np.zeros((n, 3, 3)), stress, copy, **extra)
         out[float(f)] = np.abs(np.asarray(s) - stress).max(axis=(1, 2)) / scale
     return out
+
+
+def uniqueness_report(material, stress, state) -> str:
+    """Where a CPA law's rate problem at the committed (stress, state) has no unique solution, as one
+    sentence (empty where every point's has one, or for a law without :meth:`material.CPAModel.uniqueness_floor`).
+
+    The thesis's non-associated law near failure can have several stress rates for one strain rate
+    (``docs/cpa_law.md``, section 4): a global Newton that meets such a point cannot converge below the jump
+    of its response, so a run that stops there is told so. The bound is the least uniform step
+    stabilisation that restores uniqueness at the start of the step by a sufficient condition; it does not
+    see planes that join within a step, so a run can also stop where it reports none."""
+    law = material
+    while not hasattr(law, "uniqueness_floor") and hasattr(law, "law"):  # (the undrained wrapper)
+        law = law.law
+    if not hasattr(law, "uniqueness_floor"):
+        return ""
+    stress = np.asarray(stress, dtype=float)
+    mu = law.uniqueness_floor(stress, state)
+    lost = mu > 0.0
+    if not lost.any():
+        return ""
+    worst = int(np.argmax(mu))
+    p = -np.trace(stress[worst]) / 3.0
+    return (f"the CPA law's rate problem has no unique solution (by the sufficient condition) at {int(lost.sum())} "
+            f"of {mu.size} points of the last converged step; the least step stabilisation that restores it there "
+            f"is up to mu = {mu[worst]:.3g} (point {worst}, mean stress {p:.3g} kPa; this run's stabilisation: "
+            f"{law.options.stabilisation!r}; docs/cpa_law.md, section 4)")

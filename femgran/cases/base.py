@@ -291,6 +291,12 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                 if problem.stages:
                     sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
                 break
+    if not sol.completed and not signals:
+        from femgran.diagnostics import uniqueness_report
+
+        note = uniqueness_report(newton.points.material, newton.points.stress, newton.points.state)
+        if note:
+            sol.stop_reason = f"{sol.stop_reason}; {note}"
     if writer is not None:
         writer.close(newton, sol.completed, sol.stop_reason)
     if ckpt is not None:

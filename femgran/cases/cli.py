@@ -292,10 +292,11 @@ def _print_zero_step_drift(case, material, checkpoint) -> None:
 
 def _print_uniqueness(case, material, checkpoint) -> None:
     """Where the CPA law's rate problem at the checkpoint's committed state has no unique solution, and the
-    least uniform step stabilisation that would restore it there (:meth:`material.CPAModel.uniqueness_floor`;
+    least uniform step stabilisation that would restore it there (:func:`femgran.diagnostics.uniqueness_report`;
     a sufficient condition, blind to planes that join within a step)."""
     from femgran import checkpoint as ck
     from femgran.cases.base import build_problem
+    from femgran.diagnostics import uniqueness_report
 
     problem = build_problem(case, material)
     law = problem.material
@@ -305,16 +306,9 @@ def _print_uniqueness(case, material, checkpoint) -> None:
         return
     arrays = ck.load(checkpoint)[0]
     state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
-    mu = law.uniqueness_floor(arrays["stress"], state)
-    lost = mu > 0.0
-    if not lost.any():
-        print(f"  the rate problem of every one of the {mu.size} points is uniquely solvable at the checkpoint")
-        return
-    worst = int(np.argmax(mu))
-    p = -np.trace(arrays["stress"][worst]) / 3.0
-    print(f"  the rate problem has no unique solution (by the sufficient condition) at {int(lost.sum())} of {mu.size} "
-          f"points; the least step stabilisation that restores it there is up to mu = {mu[worst]:.3g} (point {worst}, "
-          f"mean stress {p:.3g} kPa; the run's stabilisation: {law.options.stabilisation!r})")
+    note = uniqueness_report(law, arrays["stress"], state)
+    print(f"  {note}" if note else
+          f"  the rate problem of every one of the {len(arrays['stress'])} points is uniquely solvable at the checkpoint")
 
 
 def register(subparsers) -> None:

@@ -112,6 +112,41 @@ def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     assert replayed["reason"] == stopped["reason"]  # the same step fails the same way, deterministically
 
 
+def test_uniqueness_report_names_the_points_whose_rate_problem_has_several_solutions():
+    """The sentence a stopped run and `femgran replay` carry: at the near-failure point of the material tests
+    (three rate solutions) both stored points lose uniqueness, with the bound 0.082 of the minimal
+    stabilisation; an in-situ state and a law without planes give nothing."""
+    from pathlib import Path
+
+    import material
+    from femgran.diagnostics import uniqueness_report
+    from material.cpa import CPAModel
+    from material.parameters import parameters_from_dict
+
+    d = dict(np.load(Path(__file__).parents[1] / "material" / "data" / "near_failure_point.npz"))
+    model = CPAModel(parameters_from_dict(json.loads(str(d["params_json"]))), rule=str(d["rule"]), axes=d["axes"])
+    state = {k[len("state__"):]: v for k, v in d.items() if k.startswith("state__")}
+    note = uniqueness_report(model, d["stress"], state)
+    assert "has no unique solution (by the sufficient condition) at 2 of 2 points" in note
+    assert "mu = 0.082" in note and "this run's stabilisation: 0.0" in note
+    sig = np.repeat(-100.0 * np.eye(3)[None], 3, axis=0)
+    assert uniqueness_report(model, sig, model.initial_state(3, stress=sig)) == ""
+    elastic = material.LinearElastic(1e4, 0.3)
+    assert uniqueness_report(elastic, sig, elastic.initial_state(3)) == ""
+
+
+def test_a_run_that_stops_says_where_the_law_lost_uniqueness(tmp_path, monkeypatch):
+    """The stop message of a run (and status.json) ends with the uniqueness report of the last converged
+    state when it has one (here stubbed: the real report needs a footing near failure, minutes of run)."""
+    import femgran.diagnostics as diagnostics
+
+    monkeypatch.setattr(diagnostics, "uniqueness_report", lambda law, stress, state: "REPORT")
+    sol = run(Footing(resolution=1, steps=6, settlement_m=0.01), {"preset": "ottawa_c109", "set": {"E": 60000}},
+              solver={"max_iter": 4, "max_cuts": 0}, output=Output(tmp_path / "r", plots=False))
+    assert not sol.completed and sol.stop_reason.endswith("; REPORT")
+    assert json.loads((tmp_path / "r" / "status.json").read_text())["reason"].endswith("; REPORT")
+
+
 def test_a_kill_during_a_checkpoint_write_leaves_the_previous_one_and_a_corrupted_one_is_named(tmp_path):
     out = Output(tmp_path / "r", plots=False, checkpoint_every=2, keep_checkpoints=3)
     run(CASE, SAND, output=out)
