@@ -41,9 +41,9 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
         ws = make_workspace(M)
         pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
-            st, its, hv, lam, dl, best, mu, over = point_update(law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p],
-                                                      c0[p], m_over, nl_shift[p], sig_out[p], kap_out[p], D_out[p],
-                                                      loading[p], grad_out[p], ws)
+            st, its, hv, lam, dl, best, mu, over = point_update(
+                law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p], c0[p], m_over, nl_shift[p], sig_out[p],
+                kap_out[p], D_out[p], loading[p], grad_out[p], ws)
             status[p] = st
             iterations[p] = its
             halvings[p] = hv
