@@ -22,7 +22,9 @@ EXPECTED = {  # name: (planes, degree)
     "bazant-oh-33": (33, 11),
     "lebedev-86": (43, 15),
     "lebedev-110": (55, 17),
+    "equator-78": (78, 13),
 }
+OCTAHEDRAL = [r for r in RULES if r != "equator-78"]
 # Bazant-Oh tables are printed with 10 digits: their moments are exact to ~3e-11
 TOL = {"bazant-oh-33": 1e-9}
 
@@ -58,7 +60,7 @@ def test_normalised_unit_hemisphere(name):
     assert np.sum(d < 1e-8) == 2 * len(n)
 
 
-@pytest.mark.parametrize("name", RULES)
+@pytest.mark.parametrize("name", OCTAHEDRAL)
 def test_octahedral_invariance(name):
     """The 48 signed permutations map the set of +/- normals (with weights) onto itself."""
     n, w = integration_rule(name)
