@@ -12,7 +12,8 @@ Fields (snake_case; units: m, kPa):
   ``mobilised_ratio`` (CPA: mobilised friction tau/sigma_N of the most loaded plane over eta_f),
   ``kappa_max`` (CPA: largest plane hardening variable, m), ``stabilisation`` (CPA: the mu of the step
   stabilisation's floor in the last step, 0 where the thesis's law was uniquely solvable, docs/cpa_law.md
-  section 4), ``eq_plastic_strain`` (von Mises law),
+  section 4), ``overstress`` (CPA: the largest share of a loading plane's mobilised ratio the step
+  stabilisation carries above the hardening curve in the last step), ``eq_plastic_strain`` (von Mises law),
   ``q_kPa`` (sqrt(3 J2)), ``p_kPa`` (mean stress, compression +);
 * cell data: the averages of the same quadrature fields over each element (weighted by dx),
   ``status`` (max material status in the element) and ``deposition_axis`` (material e2, if the

@@ -44,6 +44,8 @@ def _material(args) -> dict:
         spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
         if args.nonlocal_length is not None:
             spec["nonlocal_length"] = args.nonlocal_length
+        if args.rule is not None:
+            spec["rule"] = args.rule
     elif args.law == "von_mises":
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
     elif args.law == "drucker_prager":
@@ -74,6 +76,11 @@ def _material_flags(p):
                    help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
                         "carry a footing to its end; 'minimal': each point's least MU for a unique rate problem, "
                         "docs/cpa_law.md section 4)")
+    from material.planes import available_rules
+
+    g.add_argument("--rule", choices=sorted(available_rules()), default=None,
+                   help="CPA integration planes (default bazant-oh-33; equator-78 resolves the critical planes "
+                        "of plane strain to 5 deg: docs/cpa_law.md section 5.3)")
     g.add_argument("--nonlocal-length", type=float, default=None, metavar="L",
                    help="CPA with post-peak softening: regularise it by the implicit gradient of length L [m] "
                         "instead of the crack band (docs/regularisation.md)")

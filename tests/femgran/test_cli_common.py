@@ -51,6 +51,23 @@ def test_run_json_records_the_command_and_the_options(tmp_path):
     assert record["runs"][0]["completed"] is True and "femgran_version" in record
 
 
+def test_the_rule_flag_chooses_the_planes_of_the_cpa_law(capsys):
+    """--rule reaches the case's CPA law (default: the thesis's 33 planes); an unknown rule is refused with
+    the list of rules."""
+    from femgran.cases import Footing
+    from femgran.cases.base import build_problem
+    from femgran.cases.cli import _material
+
+    parser = build_parser()
+    case = Footing(resolution=1)
+    for flags, planes in (([], 33), (["--rule", "equator-78"], 78), (["--rule", "lebedev-26"], 13)):
+        assert build_problem(case, _material(parser.parse_args(["footing", *flags]))).material.n_planes == planes
+    with pytest.raises(SystemExit):
+        parser.parse_args(["footing", "--rule", "bazant-oh-34"])
+    err = capsys.readouterr().err
+    assert "invalid choice: 'bazant-oh-34'" in err and "equator-78" in err
+
+
 def test_the_stabilisation_flag_takes_a_number_or_minimal(capsys):
     """--stabilisation reaches the case's CPA law as a number or "minimal" (docs/cpa_law.md section 4); the
     default is the thesis's law; anything else is refused with the allowed values."""
