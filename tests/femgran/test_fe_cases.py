@@ -83,14 +83,17 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     exceeds Mohr-Coulomb's by 0-11 % with the orientation of the principal axes, 3.2 % on average
     (tests/material/test_driver_cpa.py), and N_gamma amplifies half a degree of friction into about
     9 % of capacity. The cone with that average strength (phi = 30.5 deg: q13 = 206.1 kPa at p0 = 100 kPa
-    against the planes' mean 206.4) agrees within 3 %. Measured: CPA 268.2, DP(30) 241.3, DP(30.5)
-    262.5 kPa."""
+    against the planes' mean 206.4) agrees within 3 %. With the rule ``equator-78``, whose 36 normals 5 deg
+    apart on the ring of the plane-strain critical planes make the law Mohr-Coulomb to 0.7 %, the CPA
+    footing agrees with the phi = 30 deg cone within 3 %. Measured: CPA 268.2, CPA equator-78 245.7,
+    DP(30) 241.3, DP(30.5) 262.5 kPa."""
     iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
                                              A=1e-5, E=60000.0)
     from material.factory import plane_strain_axes
 
     runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(60000.0, 0.3, 0.0, 30.0),
-            "dp30.5": material.DruckerPrager(60000.0, 0.3, 0.0, 30.5)}
+            "dp30.5": material.DruckerPrager(60000.0, 0.3, 0.0, 30.5),
+            "cpa_equator": CPAModel(iso, rule="equator-78", axes=plane_strain_axes(0.0))}
     p = {}
     for name, mat in runs.items():
         sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=2, plots=False)
@@ -100,6 +103,7 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     print("isotropic CPA against Drucker-Prager, p(0.1 B) [kPa]:", p)
     assert 1.08 < p["cpa"] / p["dp30"] < 1.14
     assert abs(p["cpa"] / p["dp30.5"] - 1) < 0.03
+    assert abs(p["cpa_equator"] / p["dp30"] - 1) < 0.03
 
 
 def test_footing_self_weight_and_surcharge_start_in_equilibrium():
