@@ -230,6 +230,14 @@ def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2
     return out
 
 
+def cpa_law(material):
+    """The CPA law of ``material`` (itself, or the law inside the undrained wrapper), or None for another law."""
+    law = material
+    while not hasattr(law, "uniqueness_floor") and hasattr(law, "law"):
+        law = law.law
+    return law if hasattr(law, "uniqueness_floor") else None
+
+
 def uniqueness_report(material, stress, state) -> str:
     """Where a CPA law's rate problem at the committed (stress, state) has no unique solution, as one
     sentence (empty where every point's has one, or for a law without :meth:`material.CPAModel.uniqueness_floor`).
@@ -239,10 +247,8 @@ def uniqueness_report(material, stress, state) -> str:
     of its response, so a run that stops there is told so. The bound is the least uniform step
     stabilisation that restores uniqueness at the start of the step by a sufficient condition; it does not
     see planes that join within a step, so a run can also stop where it reports none."""
-    law = material
-    while not hasattr(law, "uniqueness_floor") and hasattr(law, "law"):  # (the undrained wrapper)
-        law = law.law
-    if not hasattr(law, "uniqueness_floor"):
+    law = cpa_law(material)
+    if law is None:
         return ""
     stress = np.asarray(stress, dtype=float)
     mu = law.uniqueness_floor(stress, state)

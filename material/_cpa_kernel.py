@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from material._cpa_local import Point, _ratios, _uniqueness_floor, make_workspace, plane_data, point_update
-from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths, plane_stress
+from material._cpa_local import Point, _ratios, _uniqueness_floor, floor_unit, make_workspace, plane_data, point_update
+from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -64,7 +64,6 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
     near-failure point of the tests (the serial loop, the Python execution of it and the update agree)."""
     N = sig_n.shape[0]
     M = kap_n.shape[1]
-    g_mod = 0.5 / law.comp[5, 5]
     ws = make_workspace(M)
     lam6 = np.empty(6)
     unit = np.empty(M)
@@ -78,8 +77,7 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
             ws.strong[a] = kap_n[p, a] > law.A or (soft[p] > 0.0 and kap_n[p, a] >= law.kstar)
             ws.post[a] = False
             ws.floor[a] = 0.0
-            sigma_t = plane_stress(sig_n[p], law.normals[a], ws.shift[a], law.rounding)[0]
-            unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+            unit[a] = floor_unit(law, sig_n[p], ws.shift[a], a)
         pt = Point(sig_n[p], zero6, kap_n[p], soft[p], ws.eta_f, ws.shift, ws.strong, ws.select, ws.floor, 1.0,
                    ws.post, False, 0.0, 0.0, no_shift)
         out[p] = _uniqueness_floor(law, pt, ws, unit)

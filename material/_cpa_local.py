@@ -775,6 +775,15 @@ def _cholesky_succeeds(S):
     return True
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def floor_unit(law, sig_n, shift_a, a):
+    """The step stabilisation's floor of plane ``a`` per unit mu: its elastic self-coupling (w_a / t) G / sigma~_a
+    at the start-of-step stress ``sig_n`` (sigma~ at least the apex stress) [1/m] (``docs/cpa_law.md``, section 3)."""
+    g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
+    sigma_t = plane_stress(sig_n, law.normals[a], shift_a, law.rounding)[0]
+    return law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+
+
 @njit(cache=True, error_model="numpy")
 def _uniqueness_floor(law, pt, ws, unit):
     """The least mu of the step stabilisation for which the rate problem at sigma_n is uniquely solvable, by
@@ -884,14 +893,11 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     # the step stabilisation's floor of each plane over a nominal step: mu times its elastic self-coupling
     # (w/t) G / sigma~ (uniform mu, or the point's least mu for a unique rate problem with opt.minimal);
     # over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
-    g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
     unit = ws.floor0
     stabilised = opt.minimal or opt.stabilisation > 0.0
     for a in range(M):
-        unit[a] = 0.0  # (the thesis's law: no floor, and no plane stresses computed for it)
-        if stabilised:
-            sigma_t = plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0]
-            unit[a] = law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+        # (the thesis's law: no floor, and no plane stresses computed for it)
+        unit[a] = floor_unit(law, sig_n, shift[a], a) if stabilised else 0.0
         ws.floor[a] = 0.0
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
                m_over, nl_shift)

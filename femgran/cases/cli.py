@@ -303,13 +303,10 @@ def _print_uniqueness(case, material, checkpoint) -> None:
     a sufficient condition, blind to planes that join within a step)."""
     from femgran import checkpoint as ck
     from femgran.cases.base import build_problem
-    from femgran.diagnostics import uniqueness_report
+    from femgran.diagnostics import cpa_law, uniqueness_report
 
-    problem = build_problem(case, material)
-    law = problem.material
-    while not hasattr(law, "uniqueness_floor") and hasattr(law, "law"):  # (the undrained wrapper)
-        law = law.law
-    if not hasattr(law, "uniqueness_floor"):
+    law = cpa_law(build_problem(case, material).material)
+    if law is None:
         return
     arrays = ck.load(checkpoint)[0]
     state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
