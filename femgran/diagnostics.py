@@ -41,7 +41,8 @@ import numpy as np
 
 from material.base import STATUS_FAILED
 
-__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "zero_step_drift"]
+__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
+           "uniqueness_report", "cpa_law"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
@@ -171,18 +172,21 @@ def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> di
     to the largest rate of that point, is ``slope_jump`` (about h times the curvature where the response
     is smooth, of order 1 at a kink), at ``s_kink`` (the grid point between the two intervals). Where
     the state has ``loading`` (CPA), ``loading_before`` / ``loading_after`` count the loading planes on
-    either side of the kink. Also ``rate`` (N,): the largest |d sigma / ds| [kPa per unit s].
+    either side of the kink. Also ``rate`` (N,): the largest |d sigma / ds| [kPa per unit s], and
+    ``failed_at`` (N,): the first s at which the point's update fails (status FAILED; NaN where it never
+    does), where the branch the update follows from the start of the step ends.
     ``inputs``: the material's other inputs, as the solver passes them (``step_fraction``).
     """
     s = np.asarray(s, dtype=float)
     if s.ndim != 1 or s.size < 3 or not np.allclose(np.diff(s), s[1] - s[0]) or s[1] <= s[0]:
         raise ValueError(f"s: need at least 3 increasing, equally spaced values, got {s!r}")
     n = len(stress)
-    sig, loading = [], []
+    sig, loading, failed = [], [], []
     for si in s:
         copy = {k: np.array(v, copy=True) for k, v in state.items()}
         out, st, _ = material.update(d_strain + si * direction, stress, copy, **inputs)
         sig.append(out.reshape(n, 9))
+        failed.append(np.asarray(st["status"]) == STATUS_FAILED if "status" in st else np.zeros(n, bool))
         if "loading" in st:
             loading.append(np.asarray(st["loading"]).sum(axis=1))
     sig = np.array(sig)  # (ns, N, 9)
@@ -191,7 +195,9 @@ def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> di
     jump = np.abs(np.diff(slope, axis=0)).max(axis=2) / np.maximum(rate, 1e-300)  # (ns - 2, N)
     k = jump.argmax(axis=0)
     pts = np.arange(n)
-    out = {"slope_jump": jump[k, pts], "s_kink": s[k + 1], "rate": rate}
+    failed = np.array(failed)
+    out = {"slope_jump": jump[k, pts], "s_kink": s[k + 1], "rate": rate,
+           "failed_at": np.where(failed.any(axis=0), s[failed.argmax(axis=0)], np.nan)}
     if loading:
         loading = np.array(loading)
         out["loading_before"], out["loading_after"] = loading[k, pts], loading[k + 2, pts]
@@ -228,6 +234,63 @@ def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2
         s, _, _ = material.update(np.zeros((n, 3, 3)), stress, copy, **extra)
         out[float(f)] = np.abs(np.asarray(s) - stress).max(axis=(1, 2)) / scale
     return out
+
+
+def stall_report(solver, points: int = 21) -> str:
+    """Why the last try of a step found no decrease of the residual along its Newton direction, as one
+    sentence (empty when that try ended otherwise, or for a coupled discretisation, whose extra field this
+    probe does not follow).
+
+    The solver keeps the iterate, the direction and the shortest trial s of that line search
+    (``NewtonSolver.stalled``); the material is evaluated at ``points`` equally spaced s in [0, s] from the
+    committed state (:func:`kinks_along`). A point whose update fails there has no solution on the branch it
+    follows from the start of the step beyond that s: its response ends at a fold, the residual cannot
+    fall below the jump this makes, and cutting the step back does not remove it when the fold lies in the
+    direction the equilibrium needs. Such a point is then evaluated at the full Newton step too; where it
+    integrates there, the law's strain-driven problem has a second solution from the same start, and
+    the sentence gives both branches' loading planes and second-order work (a negative one is a
+    softening response: the material state is unstable). Where no point fails, the sentence names the
+    point with the largest jump of its stress rate. Measured on the thesis-sand footing in
+    ``docs/cpa_law.md``, section 4."""
+    last = getattr(solver, "stalled", None)
+    if last is None or solver.disc.n_displacement_dofs != solver.disc.ndofs:
+        return ""
+    du, ddu, s_short = last
+    s = np.linspace(0.0, s_short, max(int(points), 3))
+    probe = solver_kinks_along(solver, du, ddu, s)
+    pts = solver.points
+    mean = -np.trace(pts.stress, axis1=1, axis2=2) / 3.0
+    where = f"along the last Newton direction (its line search tried down to s = {s_short:.2g})"
+    bad = np.flatnonzero(np.isfinite(probe["failed_at"]))
+    if bad.size == 0:
+        i = int(np.argmax(probe["slope_jump"]))
+        return (f"{where} every point's update has a solution; the largest jump of a point's stress rate is at "
+                f"point {i} (mean stress {mean[i]:.3g} kPa, at s = {probe['s_kink'][i]:.2g})")
+    i = int(bad[np.argmin(probe["failed_at"][bad])])
+    s_fail = float(probe["failed_at"][i])
+    s_before = float(s[max(int(np.searchsorted(s, s_fail)) - 1, 0)])
+    d_strain, direction = solver.disc.strain(du), solver.disc.strain(ddu)
+    rate = {"step_fraction": solver.step_fraction} if getattr(pts.material, "rate_dependent", False) else {}
+    branches = []
+    for si in (s_before, 1.0):
+        copy = {k: np.array(v[i:i + 1], copy=True) for k, v in pts.state.items()}
+        de = d_strain[i:i + 1] + si * direction[i:i + 1]
+        sig, st, _ = pts.material.update(de, pts.stress[i:i + 1], copy, **rate)
+        ok = "status" not in st or int(np.asarray(st["status"])[0]) != STATUS_FAILED
+        planes = int(np.asarray(st["loading"])[0].sum()) if "loading" in st else None
+        work = float(np.sum((np.asarray(sig)[0] - pts.stress[i]) * de[0]))
+        branches.append((ok, planes, work))
+    (ok0, planes0, work0), (ok1, planes1, work1) = branches
+    text = (f"{where} the update of {bad.size} point(s) has no solution on its branch from the start of the step "
+            f"beyond s = {s_fail:.2g} (point {i}: mean stress {mean[i]:.3g} kPa")
+    if planes0 is not None:
+        text += f", {planes0} loading planes before it, second-order work {work0:.2g} kPa"
+    if ok1:
+        text += (f"; at the full Newton step it integrates on another branch from the same start"
+                 + (f", {planes1} loading planes, second-order work {work1:.2g} kPa" if planes1 is not None else "")
+                 + ": the strain-driven problem has two solutions there and the one the update follows ends at a "
+                   "fold")
+    return text + "; docs/cpa_law.md, section 4)"
 
 
 def cpa_law(material):

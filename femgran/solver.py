@@ -389,6 +389,7 @@ class NewtonSolver:
         self.t = 0.0
         self.time_offset = 0.0  # the series time of a staged run: stage k spans [k, k + 1]
         self._committed_tangent = None
+        self.stalled = None  # (du, ddu, s) of the last try whose line search found no decrease
         self.log = NewtonLog() if log is None else log
         self.set_stage(dirichlet, f_fixed, f_ramp)
 
@@ -512,6 +513,7 @@ class NewtonSolver:
         """
         opt = self.options
         self.log.start_try()
+        self.stalled = None
         if self.linear is not None:
             self.linear.new_step()
 
@@ -565,6 +567,7 @@ class NewtonSolver:
         Returns (du, t_new, iterations, residuals); raises ``_StepFailure`` as :meth:`step` does."""
         opt = self.options
         self.log.start_try()
+        self.stalled = None
         if self.linear is not None:
             self.linear.new_step()
         n = self.disc.ndofs
@@ -635,6 +638,10 @@ class NewtonSolver:
         at s ~ 2**-6..2**-8. With this rule the same footing (resolution 2, E = 6 MPa) ran in 40 steps
         without a cut-back and with a third fewer material evaluations (470 against 718).
 
+        On that failure ``self.stalled`` keeps (du, ddu, s): the iterate, the direction and the shortest
+        trial, which :func:`femgran.diagnostics.stall_report` probes at a run's stop (None after any other
+        end of a try).
+
         Why s/4 and not the textbook s/10: the overshoot comes from a few points whose response has a
         kink along the direction (``femgran.diagnostics.kinks_along``: 9 of 1,386 points, the first at
         s = 0.05, every other point linear), so |r(s)| is nearly linear up to the first kink and the
@@ -657,6 +664,7 @@ class NewtonSolver:
             except _StepFailure:
                 s_model = 0.5 * s
             if s <= s_min:
+                self.stalled = (du.copy(), ddu.copy(), s)  # femgran.diagnostics.stall_report reads it
                 raise _StepFailure(f"line search: no decrease of the residual along the Newton direction "
                                    f"down to step length {s:.1e} (iteration {it})")
             s = min(0.5 * s, max(0.25 * s, s_model))

@@ -292,11 +292,12 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                     sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
                 break
     if not sol.completed and not signals:
-        from femgran.diagnostics import uniqueness_report
+        from femgran.diagnostics import stall_report, uniqueness_report
 
-        note = uniqueness_report(newton.points.material, newton.points.stress, newton.points.state)
-        if note:
-            sol.stop_reason = f"{sol.stop_reason}; {note}"
+        for note in (stall_report(newton),
+                     uniqueness_report(newton.points.material, newton.points.stress, newton.points.state)):
+            if note:
+                sol.stop_reason = f"{sol.stop_reason}; {note}"
     if writer is not None:
         writer.close(newton, sol.completed, sol.stop_reason)
     if ckpt is not None:

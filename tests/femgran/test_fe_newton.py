@@ -357,6 +357,48 @@ def test_line_search_halves_a_twice_too_long_step_and_never_takes_a_non_descent_
     assert not uphill.completed and "line search: no decrease" in uphill.stop_reason
 
 
+class _FailsBeyond(_StiffTangent):
+    """Test double: ``_StiffTangent`` whose update fails (status FAILED, the committed stress back) at the
+    points whose strain increment exceeds ``limit`` in any component: a branch that ends."""
+
+    def __init__(self, inner, factor, limit):
+        super().__init__(inner, factor)
+        self.limit = limit
+
+    def update(self, d_strain, stress, state):
+        s, st, D = super().update(d_strain, stress, state)
+        bad = np.abs(d_strain).max(axis=(1, 2)) > self.limit
+        st["status"] = np.where(bad, STATUS_FAILED, st["status"])
+        st["step_ratio"] = np.where(bad, 0.5, st.get("step_ratio", np.ones(len(bad))))
+        return np.where(bad[:, None, None], stress, s), st, D
+
+
+def test_a_stalled_line_search_is_probed_along_its_direction_at_the_stop():
+    """``NewtonSolver.stalled`` keeps the last failed line search; ``stall_report`` evaluates the material
+    along it. An uphill tangent with every update solvable: the sentence says so. The same with updates that
+    fail beyond a strain of 2e-6 (the prescribed step reaches 1e-4): it names the first failing s and a point,
+    and says nothing of a second branch (the full step fails too). A try that ends otherwise leaves no probe."""
+    from femgran.diagnostics import stall_report
+
+    d, bcs = _plastic_cube()
+    opts = SolverOptions(max_cuts=0, predictor="none", line_search=4)
+    solver = NewtonSolver(d, _StiffTangent(material.LinearElastic(1e4, 0.3), -1.0), bcs, options=opts)
+    assert not solver.run(1).completed and solver.stalled is not None
+    assert solver.stalled[2] == 2.0 ** -4
+    note = stall_report(solver)
+    assert "every point's update has a solution" in note and "tried down to s = 0.062" in note
+    folding = NewtonSolver(d, _FailsBeyond(material.LinearElastic(1e4, 0.3), -1.0, 2e-6), bcs, options=opts)
+    folding.step_fraction = 1.0
+    folding.stalled = (np.zeros(d.ndofs), solver.stalled[1], 2.0 ** -4)
+    note = stall_report(folding)
+    assert "has no solution on its branch from the start of the step beyond s = " in note
+    assert "two solutions" not in note
+    s_fail = float(note.split("beyond s = ")[1].split(" ")[0])
+    assert 0.0 < s_fail <= 2.0 ** -4
+    fine = NewtonSolver(d, material.LinearElastic(1e4, 0.3), bcs, options=opts)
+    assert fine.run(1).completed and fine.stalled is None and stall_report(fine) == ""
+
+
 def test_newton_log_records_switching_points_and_the_convergence_rate(tmp_path):
     """The log of a von Mises cube that turns plastic all at once: every point loads, none switches
     between iterations, the accepted residuals converge quadratically (rate near 2), and the CSV holds

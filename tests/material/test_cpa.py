@@ -233,6 +233,56 @@ def test_surface_points_need_the_compaction_fade():
         assert np.abs(s[j] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
 
 
+def test_the_footing_stops_where_a_point_has_two_branches_from_its_start_and_the_one_followed_folds():
+    """Point 881 of ``femgran footing --alpha 0`` (the thesis's law, mu = 0) at its stop, s = 0.056 B: its
+    strain increment at the global iterate where the line search found no decrease, and that iterate's
+    Newton direction at the point (``docs/cpa_law.md``, section 4). Along d_strain + s * direction the
+    update follows a branch with 16 loading planes and positive second-order work; it ends at a fold
+    between s = 1e-4 and 2e-4, where the update fails. From the same start a second branch, with 12
+    loading planes and negative second-order work (a softening response), exists over the whole range: the
+    kernel's direct Newton finds it at s = 5e-3, and the reference's Newton follows it back to s = 0, where
+    it differs from the kernel's answer by 0.01 kPa. That jump is what keeps the footing's residual near
+    1e-5 (the tolerance is 1e-8)."""
+    from femgran.diagnostics import kinks_along
+    from material import cpa_reference as ref
+
+    model, d, state = _replay_file("footing_fold_point.npz")
+    sig, de, dd = d["stress"], d["d_strain"], d["direction"]
+
+    def update(s):
+        copy = {k: v.copy() for k, v in state.items()}
+        out, st, _ = model.update(de + s * dd, sig, copy)
+        return out[0], st, float(np.sum((out[0] - sig[0]) * (de + s * dd)[0]))
+
+    s0, st0, w0 = update(0.0)
+    assert st0["status"][0] == STATUS_OK and st0["loading"][0].sum() == 16 and w0 > 0.0
+    assert update(1e-4)[1]["loading"][0].sum() == 16
+    assert update(5e-4)[1]["status"][0] == STATUS_FAILED
+    s_far, st_far, w_far = update(5e-3)
+    assert st_far["status"][0] == STATUS_OK and st_far["loading"][0].sum() == 12 and w_far < 0.0
+    probe = kinks_along(model, sig, state, de, dd, np.linspace(0.0, 1e-3, 11))
+    assert 1e-4 < probe["failed_at"][0] <= 3e-4
+    # the 12-plane branch at s = 0, by the reference's equations and Newton, from the kernel's s = 5e-3
+    law = ref._Law(model)
+    kap_n, eps_n = state["kappa"][0], state["strain"][0]
+    strong = np.flatnonzero(kap_n > law.p.A)
+    x = np.concatenate([ref._six(s_far), (st_far["kappa"][0] - kap_n)[strong], [0.0]])
+    for s in np.linspace(5e-3, 0.0, 6):
+        de6 = ref._six((de + s * dd)[0])
+        r_scale = np.abs(de6).max() + np.abs(sig).max() / law.p.E
+        scale = np.ones(x.size)
+        scale[:6] /= r_scale
+        scale[-1] /= r_scale
+        args = (sig[0], de6, eps_n, kap_n, 0.0, strong, np.zeros(kap_n.size), None)
+        ok, x = ref._newton(law, x, args, scale, 1e-11, 40)
+        assert ok
+    dk = ref.residual(law, x, *args)[1].real
+    assert (dk > 1e-14).sum() == 12
+    jump = np.abs(ref._sym(x[:6]) - s0).max()
+    assert 5e-3 < jump < 2e-2  # 0.0101 kPa
+    assert float(np.sum((ref._sym(x[:6]) - sig[0]) * de[0])) < 0.0
+
+
 def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
     """A point of the thesis-sand footing at 90 % mobilisation whose planes on their curves couple into
     a rate problem with three solutions (not a P-matrix problem; enumerated here with the reference
