@@ -136,15 +136,17 @@ def test_uniqueness_report_names_the_points_whose_rate_problem_has_several_solut
 
 
 def test_a_run_that_stops_says_where_the_law_lost_uniqueness(tmp_path, monkeypatch):
-    """The stop message of a run (and status.json) ends with the uniqueness report of the last converged
-    state when it has one (here stubbed: the real report needs a footing near failure, minutes of run)."""
+    """The stop message of a run (and status.json) ends with the probe of its last stalled line search and
+    the uniqueness report of the last converged state when they have something to say (here stubbed: the
+    real ones need a footing near failure, minutes of run; both are tested on their own)."""
     import femgran.diagnostics as diagnostics
 
     monkeypatch.setattr(diagnostics, "uniqueness_report", lambda law, stress, state: "REPORT")
+    monkeypatch.setattr(diagnostics, "stall_report", lambda solver: "STALL")
     sol = run(Footing(resolution=1, steps=6, settlement_m=0.01), {"preset": "ottawa_c109", "set": {"E": 60000}},
               solver={"max_iter": 4, "max_cuts": 0}, output=Output(tmp_path / "r", plots=False))
-    assert not sol.completed and sol.stop_reason.endswith("; REPORT")
-    assert json.loads((tmp_path / "r" / "status.json").read_text())["reason"].endswith("; REPORT")
+    assert not sol.completed and sol.stop_reason.endswith("; STALL; REPORT")
+    assert json.loads((tmp_path / "r" / "status.json").read_text())["reason"].endswith("; STALL; REPORT")
 
 
 def test_a_kill_during_a_checkpoint_write_leaves_the_previous_one_and_a_corrupted_one_is_named(tmp_path):
