@@ -243,10 +243,11 @@ def stall_report(solver, points: int = 21) -> str:
 
     The solver keeps the iterate, the direction and the shortest trial s of that line search
     (``NewtonSolver.stalled``); the material is evaluated at ``points`` equally spaced s in [0, s] from the
-    committed state (:func:`kinks_along`). A point whose update fails there has no solution on the branch it
-    follows from the start of the step beyond that s: its response ends at a fold, the residual cannot
-    fall below the jump this makes, and cutting the step back does not remove it when the fold lies in the
-    direction the equilibrium needs. Such a point is then evaluated at the full Newton step too; where it
+    committed state (:func:`kinks_along`). A point whose update fails there has, beyond that s, no solution
+    that its local solver reaches on the branch from the start of the step (the branch ends at a fold, or
+    the local iterations run out: ``replay`` its inputs with a larger ``maxit`` to tell which). The residual
+    cannot fall below the jump this makes, and cutting the step back does not remove it when that s lies in
+    the direction the equilibrium needs. Such a point is then evaluated at the full Newton step too; where it
     integrates there, the law's strain-driven problem has a second solution from the same start, and
     the sentence gives both branches' loading planes and second-order work (a negative one is a
     softening response: the material state is unstable). Where no point fails, the sentence names the
@@ -280,16 +281,15 @@ def stall_report(solver, points: int = 21) -> str:
         planes = int(np.asarray(st["loading"])[0].sum()) if "loading" in st else None
         work = float(np.sum((np.asarray(sig)[0] - pts.stress[i]) * de[0]))
         branches.append((ok, planes, work))
-    (ok0, planes0, work0), (ok1, planes1, work1) = branches
-    text = (f"{where} the update of {bad.size} point(s) has no solution on its branch from the start of the step "
-            f"beyond s = {s_fail:.2g} (point {i}: mean stress {mean[i]:.3g} kPa")
+    (_, planes0, work0), (ok1, planes1, work1) = branches
+    text = (f"{where} the update of {bad.size} point(s) fails on its branch from the start of the step beyond "
+            f"s = {s_fail:.2g} (point {i}: mean stress {mean[i]:.3g} kPa")
     if planes0 is not None:
         text += f", {planes0} loading planes before it, second-order work {work0:.2g} kPa"
     if ok1:
         text += (f"; at the full Newton step it integrates on another branch from the same start"
                  + (f", {planes1} loading planes, second-order work {work1:.2g} kPa" if planes1 is not None else "")
-                 + ": the strain-driven problem has two solutions there and the one the update follows ends at a "
-                   "fold")
+                 + ": the strain-driven problem has two solutions there")
     return text + "; docs/cpa_law.md, section 4)"
 
 

@@ -391,7 +391,7 @@ def test_a_stalled_line_search_is_probed_along_its_direction_at_the_stop():
     folding.step_fraction = 1.0
     folding.stalled = (np.zeros(d.ndofs), solver.stalled[1], 2.0 ** -4)
     note = stall_report(folding)
-    assert "has no solution on its branch from the start of the step beyond s = " in note
+    assert "fails on its branch from the start of the step beyond s = " in note
     assert "two solutions" not in note
     s_fail = float(note.split("beyond s = ")[1].split(" ")[0])
     assert 0.0 < s_fail <= 2.0 ** -4
