@@ -14,6 +14,7 @@ line-search trials included) with
 * ``apex_points``: points within the apex region of their law (state key ``near_apex``);
 * ``local_iterations_mean`` / ``_max`` (state key ``iterations``, over the plastic points),
   ``continuation_points`` (state key ``continuation`` > 0: the local solver needed its outer loop),
+  ``limit_points`` (state key ``limit_points`` > 0: the step went on from a limit point of its branch),
   ``failed_points`` (status FAILED);
 * ``rate``: the estimated order of convergence log(r_k / r_k-1) / log(r_k-1 / r_k-2) of the accepted
   iterates (2 for quadratic, 1 for linear convergence).
@@ -46,7 +47,7 @@ __all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "stall_r
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
-           "local_iterations_max", "continuation_points", "failed_points", "rate")
+           "local_iterations_max", "continuation_points", "limit_points", "failed_points", "rate")
 
 
 DESCRIPTIONS = {
@@ -61,6 +62,7 @@ DESCRIPTIONS = {
     "local_iterations_mean": "mean local Newton iterations of the points that iterated",
     "local_iterations_max": "largest local Newton iteration count",
     "continuation_points": "points that needed the continuation of the local solver",
+    "limit_points": "points whose step passed a limit point of its branch (went on from the limit state)",
     "failed_points": "points that could not be integrated", "rate": "estimated order of convergence",
 }
 
@@ -123,6 +125,8 @@ class NewtonLog:
         row["local_iterations_mean"] = float(active.mean()) if active.size else 0.0
         row["local_iterations_max"] = int(its.max()) if its.size else 0
         row["continuation_points"] = int(np.sum(np.asarray(state["continuation"]) > 0)) if "continuation" in state \
+            else math.nan
+        row["limit_points"] = int(np.sum(np.asarray(state["limit_points"]) > 0)) if "limit_points" in state \
             else math.nan
         row["failed_points"] = int(np.sum(np.asarray(state["status"]) == STATUS_FAILED))
         row["rate"] = math.nan

@@ -53,7 +53,7 @@ each from the solution at the last fraction reached, and lambda is doubled again
 to 1. The answer is the solution at lambda = 1 of the one-step problem: the fractions only supply
 starting points, they are not sub-steps. When the branch ends before lambda = 1 (a limit point of the
 strain-driven response) the point reports ``FAILED`` with the fraction it reached as the suggested step
-ratio.
+ratio; :meth:`material.cpa.CPAModel.update` then goes on from the limit state.
 """
 
 from __future__ import annotations

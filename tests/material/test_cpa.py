@@ -233,20 +233,22 @@ def test_surface_points_need_the_compaction_fade():
         assert np.abs(s[j] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
 
 
-def test_the_footing_stops_where_a_point_has_two_branches_from_its_start_and_the_one_followed_folds():
-    """Point 881 of ``femgran footing --alpha 0`` (the thesis's law, mu = 0) at its stop, s = 0.056 B: its
-    strain increment at the global iterate where the line search found no decrease, and that iterate's
-    Newton direction at the point (``docs/cpa_law.md``, section 4). Along d_strain + s * direction the
-    update follows a branch with 16 loading planes and positive second-order work; it ends at a fold
-    between s = 1e-4 and 2e-4, where the update fails. From the same start a second branch, with 12
-    loading planes and negative second-order work (a softening response), exists over the whole range: the
-    kernel's direct Newton finds it at s = 5e-3, and the reference's Newton follows it back to s = 0, where
-    it differs from the kernel's answer by 0.01 kPa. That jump is what keeps the footing's residual near
+def test_the_footing_stopped_where_a_point_has_two_branches_from_its_start_and_the_one_followed_folds():
+    """Point 881 of ``femgran footing --alpha 0`` (the thesis's law, mu = 0) where it stopped, s = 0.056 B,
+    before the update continued past limit points: its strain increment at the global iterate where the
+    line search found no decrease, and that iterate's Newton direction at the point (``docs/cpa_law.md``,
+    section 4). Here the one-step problem alone (``MAX_LIMIT_POINTS = 0``). Along d_strain + s * direction
+    the step follows a branch with 16 loading planes and positive second-order work; it ends at a fold
+    between s = 1e-4 and 2e-4, where the one-step update fails. From the same start a second branch, with
+    12 loading planes and negative second-order work (a softening response), exists over the whole range:
+    the kernel's direct Newton finds it at s = 5e-3, and the reference's Newton follows it back to s = 0,
+    where it differs from the kernel's answer by 0.01 kPa. That jump kept the footing's residual near
     1e-5 (the tolerance is 1e-8)."""
     from femgran.diagnostics import kinks_along
     from material import cpa_reference as ref
 
     model, d, state = _replay_file("footing_fold_point.npz")
+    model.MAX_LIMIT_POINTS = 0
     sig, de, dd = d["stress"], d["d_strain"], d["direction"]
 
     def update(s):
@@ -281,6 +283,41 @@ def test_the_footing_stops_where_a_point_has_two_branches_from_its_start_and_the
     jump = np.abs(ref._sym(x[:6]) - s0).max()
     assert 5e-3 < jump < 2e-2  # 0.0101 kPa
     assert float(np.sum((ref._sym(x[:6]) - sig[0]) * de[0])) < 0.0
+
+
+def test_a_point_whose_branch_ends_within_the_step_goes_on_from_its_limit_state_continuously():
+    """The same point with the update as it is: where the branch followed from the start of the step ends
+    at a limit point (a fraction lam* < 1 of the increment), the state there starts the rest of the
+    increment. Along d_strain + s * direction the stress is then continuous: through the onset of the limit
+    (s ~ 1.7e-4, lam* -> 1), along the stretch where the rest of the step is taken on the 12-plane branch,
+    and where lam* -> 0 and the step goes on that branch from its start (s ~ 4.1e-3). The one-step update
+    failed on the first part and jumped by 0.0101 kPa at the last (previous test). The response there is
+    steep (2.55 kPa per unit s, about 1,000 E along the direction), and the tangent by central
+    differences is its derivative."""
+    from material import _cpa_kernel as _k
+
+    model, d, state = _replay_file("footing_fold_point.npz")
+    sig, de, dd = d["stress"], d["d_strain"], d["direction"]
+    grid = np.concatenate([[1.5e-4], np.arange(2e-4, 4.6e-3, 2e-4)])
+    stresses, passed = [], []
+    for s in grid:
+        out, st, _ = model.update(de + s * dd, sig, state, tangent=False)
+        assert st["status"][0] == STATUS_OK
+        stresses.append(out[0])
+        passed.append(int(st["limit_points"][0]))
+    assert passed[0] == 0 and passed[-1] == 0 and all(p == 1 for p in passed[1:-3])
+    steps = np.abs(np.diff(np.array(stresses), axis=0)).max(axis=(1, 2))
+    assert steps.max() < 6e-4  # 2.55 kPa per unit s over 2e-4, against the one-step jump of 0.0101 kPa
+    again, st2, D = model.update(de + 1e-3 * dd, sig, state, tangent="mandel")
+    assert int(st2["limit_points"][0]) == 1
+    assert np.array_equal(again[0], model.update(de + 1e-3 * dd, sig, state, tangent=False)[0][0])
+    e = 1e-5
+    plus = model.update(de + (1e-3 + e) * dd, sig, state, tangent=False)[0]
+    minus = model.update(de + (1e-3 - e) * dd, sig, state, tangent=False)[0]
+    fd = (_k.to_mandel(plus) - _k.to_mandel(minus))[0] / (2 * e)
+    slope = D[0] @ _k.to_mandel(dd)[0]
+    assert 2.4 < fd[0] < 2.7
+    assert np.abs(slope - fd).max() <= 2e-3 * np.abs(fd).max()
 
 
 def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
@@ -334,12 +371,17 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
 
 def test_step_stabilisation_integrates_the_near_failure_point_and_vanishes_with_the_step():
     """The near-failure point with three rate solutions has no solution along the branch from the start
-    of its step (it fails); with the step stabilisation mu = 0.02 (a hardening of at least mu / A within
-    the step) its step problem is uniquely solvable and it integrates. On a regular path the
-    stabilisation's effect on the stress is first order in the step: 10x smaller with 10x more steps."""
+    of its step (the one-step problem fails; the thesis's law goes on past 8 limit points of its branch);
+    with the step stabilisation mu = 0.02 (a hardening of at least mu / A within the step) its step problem
+    is uniquely solvable and it integrates in one step. On a regular path the stabilisation's effect on the
+    stress is first order in the step: 10x smaller with 10x more steps."""
     model, d, state = _replay_file("near_failure_point.npz")
+    model.MAX_LIMIT_POINTS = 0
     _, st0, _ = model.update(d["d_strain"], d["stress"], state)
     assert (st0["status"] == STATUS_FAILED).all()
+    del model.MAX_LIMIT_POINTS
+    _, st_lp, _ = model.update(d["d_strain"], d["stress"], state, tangent=False)
+    assert (st_lp["status"] == STATUS_OK).all() and (st_lp["limit_points"] == 8).all()
     stab = CPAModel(model.params, rule=model.rule, axes=model.axes, stabilisation=0.02)
     s, st, D = stab.update(d["d_strain"], d["stress"], state)
     assert (st["status"] == STATUS_OK).all() and np.isfinite(D).all()
