@@ -384,7 +384,7 @@ def test_step_stabilisation_integrates_the_near_failure_point_and_vanishes_with_
     assert (st_lp["status"] == STATUS_OK).all() and (st_lp["limit_points"] == 8).all()
     stab = CPAModel(model.params, rule=model.rule, axes=model.axes, stabilisation=0.02)
     s, st, D = stab.update(d["d_strain"], d["stress"], state)
-    assert (st["status"] == STATUS_OK).all() and np.isfinite(D).all()
+    assert (st["status"] == STATUS_OK).all() and np.isfinite(D).all() and (st["limit_points"] == 0).all()
     assert np.abs(s - d["stress"]).max() < 0.1 * np.abs(d["stress"]).max()  # an ordinary small step
 
     def path_end(mu, n):
