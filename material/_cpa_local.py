@@ -13,6 +13,13 @@ grows from 0 to d_eps; the algorithm only finds it. So the stress is a determini
 (d_eps, sigma_n, state_n), continuous in d_eps wherever the branch is, and nothing in it depends on how
 the global Newton got there. (Other solutions may exist away from the branch: measured at the apex,
 where Newton from the elastic trial landed on one of three different exact solutions of a point.)
+This definition holds where one branch leaves sigma_n, that is where the rate problem at sigma_n has one
+solution (``docs/cpa_law.md``, section 4). Where it has several, several branches leave sigma_n, and the
+one the update returns is the one the solver reaches: its first step is the whole increment, so it is
+the solution Newton lands on from the tangent predictor, and a finer first step can land elsewhere
+(measured at a point of the alpha = 0 footing: first fractions 1 to 1/32 give one answer, 1/64 to 1/1024
+a branch that folds at 0.016 of the increment, 1/4096 the first answer again). It is still a
+deterministic function of the step's inputs, but not a continuous one there.
 With the step stabilisation the floor of a plane over the fraction lam of a step of f nominal steps is
 floor0 / (lam f): it grows without bound as lam -> 0, so the branch starts at the committed state even
 when that state lies above the planes' curves (the overstress of earlier steps), and the update tends to
