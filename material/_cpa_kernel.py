@@ -11,16 +11,25 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from material._cpa_local import Point, _ratios, _uniqueness_floor, floor_unit, make_workspace, plane_data, point_update
+from material._cpa_local import (
+    Point,
+    _ratios,
+    _uniqueness_floor,
+    floor_unit,
+    make_workspace,
+    plane_data,
+    update_past_limits,
+)
 from material._cpa_plane import ISQ2, SQ2, induced_tensor, plane_strengths
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
-              grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu, overstress):
+def cpa_batch(law, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
+              grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu, overstress, limits):
     """Update N Gauss points (Mandel vectors), in parallel over chunks of points.
 
     Inputs: ``law`` (:class:`material._cpa_local.Law`), ``opt`` (:class:`material._cpa_local.Options`),
+    ``lim`` (:class:`material._cpa_local.Limits`: the continuation past limit points; ``max_points = 0``: none),
     sig_n, de, eps_n (N, 6) stress, strain increment, total strain at the start; kap_n (N, M) slips;
     soft (N,) softening slip scale of each point (0: none); c0 (N,), m_over and nl_shift (N, M): the implicit
     gradient's shift of the slip of the planes past their peak in this step, its m (0: no gradient) and the
@@ -31,7 +40,8 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
     reached (N,) the fraction of the increment a failed point reached (1 otherwise), opening (N,) plastic
     volumetric opening of the cut-off, mobilised (N,) the largest etah_a / eta_f,a, floor_mu (N,) the mu of the
     step stabilisation's floor at each point, overstress (N,) the stabilisation's overstress (the largest part
-    h_a dkappa_a / etah_a of a loading plane's mobilised ratio that the floor carries).
+    h_a dkappa_a / etah_a of a loading plane's mobilised ratio that the floor carries), limits (N,) int32 the
+    limit points each point's step passed (:func:`material._cpa_local.update_past_limits`).
     """
     N = sig_n.shape[0]
     M = kap_n.shape[1]
@@ -41,8 +51,8 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
         ws = make_workspace(M)
         pd = plane_data(law)
         for p in range(c * block, min(N, (c + 1) * block)):
-            st, its, hv, lam, dl, best, mu, over = point_update(
-                law, pd, opt, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p], c0[p], m_over, nl_shift[p], sig_out[p],
+            st, its, hv, lam, dl, best, mu, over, nlim = update_past_limits(
+                law, pd, opt, lim, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p], c0[p], m_over, nl_shift[p], sig_out[p],
                 kap_out[p], D_out[p], loading[p], grad_out[p], ws)
             status[p] = st
             iterations[p] = its
@@ -52,6 +62,7 @@ def cpa_batch(law, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig
             mobilised[p] = best
             floor_mu[p] = mu
             overstress[p] = over
+            limits[p] = nlim
 
 
 @njit(cache=True, error_model="numpy")

@@ -59,8 +59,21 @@ Newton still fails, the equations are solved for the fraction lambda = 1/2, 1/4,
 each from the solution at the last fraction reached, and lambda is doubled again after each success, up
 to 1. The answer is the solution at lambda = 1 of the one-step problem: the fractions only supply
 starting points, they are not sub-steps. When the branch ends before lambda = 1 (a limit point of the
-strain-driven response) the point reports ``FAILED`` with the fraction it reached as the suggested step
-ratio; :meth:`material.cpa.CPAModel.update` then goes on from the limit state.
+strain-driven response) :func:`point_update` reports ``FAILED`` with the fraction it reached, and
+:func:`update_past_limits` goes on from the limit state (next section).
+
+Past a limit point
+------------------
+Where the branch ends at a fraction lam* < 1 of the increment, lam* is located by bisection (the last
+fraction that integrates), the state there becomes the start of the rest of the increment,
+(1 - lam*) d_eps, and the rest is integrated the same way, up to ``Limits.max_points`` times. This is
+still a deterministic function of (d_eps, sigma_n, state_n), and it is continuous where the one-step
+answer jumps: as lam* -> 1 the rest vanishes, and as lam* -> 0 the rest is the whole increment. The
+tangent there is the central difference of this function (12 more evaluations): the response past the
+limit is continuous but too steep for the one-step linearisation to describe. Written in numba, it costs
+milliseconds per point instead of the seconds of the earlier Python loop over the points' arrays;
+:func:`material.cpa_reference.follow_past_limits` is that loop, kept as the reference the tests compare
+against.
 """
 
 from __future__ import annotations
@@ -71,6 +84,7 @@ import numpy as np
 from numba import njit
 
 from material._cpa_plane import (
+    ISQ2,
     compaction_weight,
     fallback_shear,
     hardening,
@@ -87,9 +101,11 @@ from material._cpa_plane import (
     sym_parts,
 )
 
-# status codes (material.base)
+# status codes (material.base), and one of point_update only: its branch ends at a limit point within the
+# step (the outputs are the limit state; update_past_limits goes on from it)
 OK = 0
 FAILED = 2
+LIMIT = 3
 
 #: The constants of the law, in the global frame (Mandel vectors/matrices).
 Law = namedtuple("Law", [
@@ -114,7 +130,16 @@ Law = namedtuple("Law", [
 #: ``step``: the size of this step in units of the run's nominal step (the step stabilisation's relaxation time).
 #: ``minimal``: the floor's mu of each point is the least that makes its rate problem uniquely solvable
 #: (:func:`_uniqueness_floor`) instead of ``stabilisation``.
-Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation", "step", "minimal"])
+#: ``locate``: where the branch ends within the step, the halvings that locate its limit point (0: the point
+#: fails there instead; :func:`update_past_limits`).
+Options = namedtuple("Options", ["tol", "maxit", "max_halvings", "tangent", "stabilisation", "step", "minimal",
+                                 "locate"])
+
+#: Options of the continuation past limit points (:func:`update_past_limits`): ``max_points``, the limit
+#: points one step may pass (0: none, the one-step problem of :func:`point_update`); ``fd_step``, the step
+#: of the central-difference tangent relative to |d_eps| + |sigma_n| / E (tensor components). The values
+#: and their measurements are the class attributes ``MAX_LIMIT_POINTS`` ... of :class:`material.cpa.CPAModel`.
+Limits = namedtuple("Limits", ["max_points", "fd_step"])
 
 #: The data of one point's local problem (fixed during its solution except ``de``, the increment of the
 #: current fraction, and ``select``).
@@ -953,6 +978,44 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
         else:
             h *= 0.5
             halvings += 1
+            if halvings > opt.max_halvings and opt.locate > 0 and lam_done > 0.0:
+                # the branch ends between lam_done and the fraction tried last: its end, by bisection, each
+                # trial a Newton solve from the solution at the last fraction reached
+                lo, hi = lam_done, min(1.0, lam_done + 2.0 * h)
+                width = 0.5 ** opt.locate
+                while hi - lo > width:
+                    mid = 0.5 * (lo + hi)
+                    for i in range(6):
+                        de_lam[i] = mid * de[i]
+                        sig[i] = sig_done[i]
+                    for a in range(M):
+                        dk[a] = dk_done[a] if strong[a] else 0.0
+                    converged, its, dl, S = _newton(law, pd, opt, pt, sig, dk, dl_done, s_done, ws)
+                    total_its += its
+                    if not converged:
+                        hi = mid
+                        continue
+                    lo = mid
+                    for i in range(6):
+                        sig_done[i] = sig[i]
+                    for a in range(M):
+                        dk_done[a] = dk[a]
+                    dl_done = dl
+                    s_done = S
+                # the limit state (the planes' slips and ratios evaluated again at it)
+                for i in range(6):
+                    de_lam[i] = lo * de[i]
+                    sig_out[i] = sig_done[i]
+                for a in range(M):
+                    dk[a] = dk_done[a] if strong[a] else 0.0
+                evaluate(law, pd, pt, sig_done, dk, dl_done, s_done, False, plane, ws)
+                best = 0.0
+                for a in range(M):
+                    slip = plane[_P_SLIP, a]
+                    kap_out[a] = kap_n[a] + max(slip, 0.0)
+                    loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
+                    best = max(best, plane[_P_RATIO, a] / eta_f[a])
+                return LIMIT, total_its, halvings, lo, dl_done, best, mu, 0.0
             if halvings > opt.max_halvings:
                 for i in range(6):
                     sig_out[i] = sig_n[i]
@@ -1065,3 +1128,107 @@ def _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out):
         for i in range(6):
             grad_out[7 + i] = col[i]
         grad_out[13] = col[7]
+
+
+@njit(cache=True, error_model="numpy")
+def _without_tangent(opt):
+    """``opt`` without the tangent."""
+    return Options(opt.tol, opt.maxit, opt.max_halvings, False, opt.stabilisation, opt.step, opt.minimal, opt.locate)
+
+
+@njit(cache=True, error_model="numpy")
+def _follow_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
+                        loading, grad_out, ws, lam0, its0, hv0, dl0):
+    """The step followed past the limit points of its branch, no tangent (``opt.locate`` > 0). ``lam0`` > 0:
+    :func:`point_update` of the whole step has ended at a limit point at that fraction, and ``sig_out``,
+    ``kap_out``, ``loading`` hold the limit state (its iterations, halvings and opening: its0, hv0, dl0);
+    ``lam0`` = 0: start with that call. Returns (ok, Newton iterations, continuation halvings, cut-off
+    opening, all summed over the parts of the step, the largest etah_a / eta_f,a, mu and overstress at the
+    end, limit points passed); sig_out, kap_out and loading (planes that loaded in any part) hold the end
+    state when ok."""
+    M = kap_n.shape[0]
+    one = _without_tangent(opt)
+    D_none = np.empty((6, 6))  # (not written without the tangent)
+    cur_sig, cur_eps, rest = sig_n.copy(), eps_n.copy(), de.copy()
+    cur_kap = kap_n.copy()
+    path_load = np.zeros(M, dtype=np.bool_)
+    st, lam, its_sum, hv_sum, dl_sum = LIMIT, lam0, its0, hv0, dl0
+    best, mu, over = 0.0, 0.0, 0.0
+    if lam0 == 0.0:
+        st, its_sum, hv_sum, lam, dl_sum, best, mu, over = point_update(
+            law, pd, one, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_none, loading,
+            grad_out, ws)
+    count = 0
+    while st == LIMIT and count < lim.max_points:
+        # the limit state starts the rest of the step
+        count += 1
+        for i in range(6):
+            cur_sig[i] = sig_out[i]
+            cur_eps[i] += lam * rest[i]
+            rest[i] *= 1.0 - lam
+        for a in range(M):
+            cur_kap[a] = kap_out[a]
+            path_load[a] = path_load[a] or loading[a]
+        st, its, hv, lam, dl, best, mu, over = point_update(
+            law, pd, one, cur_sig, rest, cur_eps, cur_kap, soft, c0, m_over, nl_shift, sig_out, kap_out, D_none,
+            loading, grad_out, ws)
+        its_sum += its
+        hv_sum += hv
+        dl_sum += dl
+    if st != OK:
+        return False, its_sum, hv_sum, dl_sum, best, mu, over, count
+    for a in range(M):
+        loading[a] = loading[a] or path_load[a]
+    return True, its_sum, hv_sum, dl_sum, best, mu, over, count
+
+
+@njit(cache=True, error_model="numpy")
+def update_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
+                       D_out, loading, grad_out, ws):
+    """:func:`point_update`, and where its branch ends at a limit point within the step (``opt.locate`` > 0),
+    the step followed past the limit points of the branch (module docstring, "Past a limit point"), with
+    the central-difference tangent there. Returns point_update's tuple and the number of limit points
+    passed. A point that cannot be followed fails as point_update fails: its start-of-step stress, the
+    fraction its branch reached."""
+    st, its, hv, lam, dl, best, mu, over = point_update(
+        law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
+        grad_out, ws)
+    if st != LIMIT:
+        return st, its, hv, lam, dl, best, mu, over, 0
+    reached = lam
+    ok, its, hv, dl, best, mu, over, count = _follow_past_limits(
+        law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, loading, grad_out,
+        ws, lam, its, hv, dl)
+    M = kap_n.shape[0]
+    if ok and opt.tangent:
+        # the step of the difference: fd_step (|d_eps| + |sigma_n| / E), in tensor components
+        size_de = 0.0
+        size_sig = 0.0
+        for i in range(6):
+            w = 1.0 if i < 3 else ISQ2
+            size_de = max(size_de, w * abs(de[i]))
+            size_sig = max(size_sig, w * abs(sig_n[i]))
+        h = lim.fd_step * (size_de + size_sig * law.comp[0, 0])
+        de_p, sig_p, kap_p, load_p, grad_p = de.copy(), np.empty(6), np.empty(M), np.empty(M, dtype=np.bool_), \
+            np.empty(14)
+        for j in range(6):
+            for sign in (1.0, -1.0):
+                de_p[j] = de[j] + sign * h
+                ok = ok and _follow_past_limits(law, pd, opt, lim, sig_n, de_p, eps_n, kap_n, soft, c0, m_over,
+                                                nl_shift, sig_p, kap_p, load_p, grad_p, ws, 0.0, 0, 0, 0.0)[0]
+                for i in range(6):  # (s+ - s-) / 2h
+                    D_out[i, j] = sig_p[i] if sign > 0.0 else (D_out[i, j] - sig_p[i]) / (2.0 * h)
+            de_p[j] = de[j]
+    if not ok:
+        for i in range(6):
+            sig_out[i] = sig_n[i]
+            if opt.tangent:
+                for j in range(6):
+                    D_out[i, j] = law.stiff[i, j]
+        for a in range(M):
+            kap_out[a] = kap_n[a]
+            loading[a] = False
+        return FAILED, its, hv, reached, 0.0, np.nan, mu, 0.0, 0
+    for i in range(14):
+        grad_out[i] = 0.0
+    return OK, its, hv, 1.0, dl, best, mu, over, count

@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from material import _cpa_kernel as _k
-from material._cpa_local import Law, Options
+from material._cpa_local import Law, Limits, Options
 from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
 from material.base import CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
@@ -415,16 +415,14 @@ class CPAModel:
                              f"nominal steps)")
         new_sig, new_state, tan = self._integrate(de, sig, state, tangent, d_nonlocal, f)
         failed = np.flatnonzero(new_state["status"] == STATUS_FAILED)
-        if failed.size and self._passes_limit_points:
-            self._pass_limit_points(de, sig, state, failed, tangent, new_sig, new_state, tan)
-            failed = np.flatnonzero(new_state["status"] == STATUS_FAILED)
         if failed.size:
             self._record_failure(de, sig, state, failed, d_nonlocal, f)
         return new_sig, new_state, tan
 
-    def _integrate(self, de, sig, state, tangent, d_nonlocal, f, max_halvings=None):
+    def _integrate(self, de, sig, state, tangent, d_nonlocal, f, max_halvings=None, limits=True):
         """One backward-Euler step of the kernel at every point (validated input; no failure record);
-        ``max_halvings`` overrides the option's."""
+        ``max_halvings`` overrides the option's; ``limits=False``: the one-step problem, without the
+        continuation past limit points (:attr:`_passes_limit_points` decides otherwise)."""
         n = de.shape[0]
         M = self.n_planes
         sig6 = _k.to_mandel(sig)
@@ -468,7 +466,11 @@ class CPAModel:
         o = self.options
         minimal = o.stabilisation == MINIMAL
         halvings_cap = o.max_halvings if max_halvings is None else int(max_halvings)
-        opt = Options(o.tol, o.maxit, halvings_cap, bool(tangent), 0.0 if minimal else o.stabilisation, f, minimal)
+        passes = limits and self._passes_limit_points and int(self.MAX_LIMIT_POINTS) > 0
+        opt = Options(o.tol, o.maxit, halvings_cap, bool(tangent), 0.0 if minimal else o.stabilisation, f, minimal,
+                      int(self.LIMIT_BISECTIONS) if passes else 0)
+        lim = Limits(int(self.MAX_LIMIT_POINTS) if passes else 0, float(self.LIMIT_FD_STEP))
+        limit_points = np.empty(n, dtype=np.int32)
         prev_threads = None
         if self.threads is not None:
             import numba
@@ -478,9 +480,9 @@ class CPAModel:
         grad_out = np.empty((n, 14))
         soft = self._softening_scale(state, n)
         try:
-            _k.cpa_batch(self._law, opt, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
+            _k.cpa_batch(self._law, opt, lim, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
                          sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
-                         mobilised, floor_mu, overstress)
+                         mobilised, floor_mu, overstress, limit_points)
         finally:
             if prev_threads is not None:
                 import numba
@@ -507,7 +509,7 @@ class CPAModel:
             "mobilised_ratio": np.where(ok, mobilised, state.get("mobilised_ratio", np.zeros(n))),
             "stabilisation": floor_mu,
             "overstress": overstress,
-            "limit_points": np.zeros(n, dtype=np.int32),
+            "limit_points": limit_points,
             # within the rounded apex, where N differs from the normal stress by more than 1 %
             "near_apex": np.abs(sig_out).max(axis=1) <= 10.0 * self.params.apex_stress,
         }
@@ -541,14 +543,12 @@ class CPAModel:
     #: near-failure point of the tests passes 8 in one step (the rest of its step folds again after 0.6, 1.2,
     #: 2.6, 5.3, 11, 25, 65 and 43 % of what is left).
     MAX_LIMIT_POINTS = 16
-    #: Halvings that locate a limit point in the fraction of the increment: 2**-40. The local solver itself
-    #: reaches the limit only to about 1e-11 of the increment (measured on the footing's fold point: the limit
-    #: found with 12, 4 and 2 continuation halvings agrees to 1e-11), so finer bisection finds nothing more.
+    #: A limit point is located to 2**-40 of the increment (by bisection between the last fraction the local
+    #: solver reached and the one it failed at, each trial a Newton solve from the solution at the last
+    #: fraction reached). The local solver itself reaches the limit only to about 1e-11 of the increment
+    #: (measured on the footing's fold point with solves from the start of the step: the limit found with
+    #: 12, 4 and 2 continuation halvings agrees to 1e-11), so finer bisection finds nothing more.
     LIMIT_BISECTIONS = 40
-    #: Continuation halvings of the local solver while the bisection looks for the limit (instead of
-    #: ``max_halvings``): a trial beyond the limit fails after them, and the limit found is the same to 1e-11
-    #: with 4 as with 12 halvings at a half to a seventh of the cost (measured on the footing's fold point).
-    LIMIT_SEARCH_HALVINGS = 4
     #: Step of the finite-difference tangent past a limit point, relative to |d_eps| + |sigma_n| / E. Measured
     #: on the footing's fold point (``tests/material/data/footing_fold_point.npz``): the response past the limit
     #: is continuous but steep (the stress moves 0.01 kPa over 1.5e-9 of strain), and directional differences
@@ -558,102 +558,15 @@ class CPAModel:
 
     @property
     def _passes_limit_points(self) -> bool:
-        """The continuation past limit points applies to the rate-independent local hardening law: not with
-        the stabilisation (whose relaxation depends on the step's size), the gradient coupling, or a
-        softening law. Measured on the crack-band biaxial study of the tests (``fe_04``, softening): 23 of its
-        steps had 1 to 21 points past their limit at about 2 s per point (bisection and the 12 evaluations of
-        the tangent, in Python), and the run took 125 s instead of 17 s, where the global cut-backs had
-        carried the points past their peak before."""
+        """The continuation past limit points applies to the rate-independent local hardening law. Not with
+        the stabilisation, whose floor depends on the step's size, nor with the gradient coupling, whose shift
+        of the step enters the step's problem as a whole: neither splits into the parts of a step. Nor, for
+        now, with a softening law: with the first version of the continuation (a Python loop over the failed
+        points' arrays, about 2 s per point) the crack-band biaxial study of the tests (``fe_04``) had 1 to 21
+        points past their limit in 23 steps and took 125 s instead of 17 s, where the global cut-backs had
+        carried those points past their peak before; with the numba version (milliseconds per point) its
+        effect on the softening studies has not been measured."""
         return not self.rate_dependent and self._nonlocal_length is None and self.params.softening_slip == 0.0
-
-    def _pass_limit_points(self, de, sig, state, idx, tangent, new_sig, new_state, tan) -> None:
-        """Replace the failed points ``idx`` of an update by the continuation past their limit points, where it
-        exists, with its tangent by central differences (in place; see :meth:`update`)."""
-        n = de.shape[0]
-        idx = idx[new_state["reached"][idx] > 0.0]  # a branch that does not leave the start has no limit to pass
-        if idx.size == 0:
-            return
-        start = _rows(state, idx, n)
-        out_sig, out_state, ok = self._follow_past_limits(de[idx], sig[idx], start, first=_rows(new_state, idx, n))
-        if tangent and ok.any():
-            m = idx.size
-            scale = np.abs(de[idx]).max(axis=(1, 2)) + np.abs(sig[idx]).max(axis=(1, 2)) / self.params.E
-            h = self.LIMIT_FD_STEP * scale
-            unit = _k.from_mandel(np.eye(6))  # (6, 3, 3): the Mandel basis as tensors
-            pert = h[None, :, None, None] * unit[:, None]  # (6, m, 3, 3)
-            batch_de = np.concatenate([(de[idx][None] + pert).reshape(-1, 3, 3),
-                                       (de[idx][None] - pert).reshape(-1, 3, 3)])
-            rep = np.tile(np.arange(m), 12)
-            s_b, _, ok_b = self._follow_past_limits(batch_de, sig[idx][rep], _rows(start, rep, m))
-            s6 = _k.to_mandel(s_b).reshape(2, 6, m, 6)
-            D6 = np.transpose((s6[0] - s6[1]) / (2.0 * h[None, :, None]), (1, 2, 0))  # (m, 6 stress, 6 strain)
-            ok &= ok_b.reshape(12, m).all(axis=0)
-            D6 = D6[ok]
-        rows = idx[ok]
-        new_sig[rows] = out_sig[ok]
-        for key, arr in out_state.items():
-            if key in new_state:
-                new_state[key][rows] = arr[ok]
-        if tangent and ok.any():
-            tan[rows] = D6 if tangent == "mandel" else _k.tangent_from_mandel(np.ascontiguousarray(D6))
-
-    def _follow_past_limits(self, de, sig, state, first=None):
-        """The step of each point (batch) followed past the limit points of its branch: returns (stress,
-        state, ok). ``first``: the one-step update's state of these points when it is known to have failed.
-        Vectorised over the points; the loops are over limit points and bisection halvings."""
-        m = de.shape[0]
-        if first is None:
-            out_sig, out_state, _ = self._integrate(de, sig, state, False, None, 1.0)
-        else:
-            out_sig, out_state = sig.copy(), first
-        ok = out_state["status"] != STATUS_FAILED
-        cur_sig, cur_state, rest = sig.copy(), _rows(state, np.arange(m), m), de.copy()
-        cur_state.setdefault("cutoff_opening", np.zeros(m))  # accumulated over the sub-steps
-        count = np.zeros(m, dtype=np.int32)
-        spent = {k: np.zeros(m, dtype=np.int32) for k in ("iterations", "continuation")}
-        loading = np.zeros((m, self.n_planes), dtype=bool)
-        todo = np.flatnonzero(~ok & (out_state["reached"] > 0.0))
-        for _level in range(self.MAX_LIMIT_POINTS):
-            if todo.size == 0:
-                break
-            k = todo.size
-            lo, hi = np.zeros(k), np.ones(k)
-            lo_sig, lo_state = cur_sig[todo].copy(), None  # the state at the last fraction reached
-            t_sig, t_state, t_rest = cur_sig[todo], _rows(cur_state, todo, m), rest[todo]
-            for _ in range(self.LIMIT_BISECTIONS):
-                mid = 0.5 * (lo + hi)
-                s_mid, st_mid, _ = self._integrate(mid[:, None, None] * t_rest, t_sig, t_state, False, None, 1.0,
-                                                   min(self.options.max_halvings, self.LIMIT_SEARCH_HALVINGS))
-                good = st_mid["status"] != STATUS_FAILED
-                lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
-                lo_sig[good] = s_mid[good]
-                if lo_state is None:  # rows that never converge are dropped below (lo = 0)
-                    lo_state = {key: np.array(v, copy=True) for key, v in st_mid.items()}
-                _put(lo_state, np.flatnonzero(good), st_mid, good)
-            moved = lo > 0.0
-            todo, lo, lo_sig = todo[moved], lo[moved], lo_sig[moved]
-            lo_state = _rows(lo_state, np.flatnonzero(moved), k)
-            if todo.size == 0:
-                break
-            count[todo] += 1
-            for key in spent:
-                spent[key][todo] += lo_state[key]
-            loading[todo] |= lo_state["loading"]
-            cur_sig[todo] = lo_sig
-            _put(cur_state, todo, lo_state, np.ones(todo.size, dtype=bool))
-            rest[todo] *= (1.0 - lo)[:, None, None]
-            s1, st1, _ = self._integrate(rest[todo], cur_sig[todo], _rows(cur_state, todo, m), False, None, 1.0)
-            good = st1["status"] != STATUS_FAILED
-            done = todo[good]
-            out_sig[done] = s1[good]
-            _put(out_state, done, st1, good)
-            ok[done] = True
-            todo = todo[~good & (st1["reached"] > 0.0)]
-        for key in spent:
-            out_state[key] = np.where(count > 0, out_state[key] + spent[key], out_state[key]).astype(np.int32)
-        out_state["loading"] = out_state["loading"] | loading
-        out_state["limit_points"] = count
-        return out_sig, out_state, ok
 
     def _post_peak_strain(self, kappa) -> np.ndarray:
         """sum of kappa_a - kappa* over the planes past their peak, divided by t (N,): the local measure e of a
@@ -696,18 +609,6 @@ class CPAModel:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **{k: v for k, v in self.last_failure.items() if k != "path"})
         return path
-
-
-def _rows(state: State, idx, n: int) -> State:
-    """The rows ``idx`` of every per-point array of ``state`` (first dimension ``n``), copied."""
-    return {k: (np.asarray(v)[idx].copy() if np.ndim(v) and np.shape(v)[0] == n else v) for k, v in state.items()}
-
-
-def _put(dst: State, rows, src: State, mask) -> None:
-    """dst[key][rows] = src[key][mask] for every per-point key the two states share (in place)."""
-    for key, arr in src.items():
-        if key in dst and np.ndim(arr) and np.ndim(dst[key]):
-            dst[key][rows] = np.asarray(arr)[mask]
 
 
 def _check_stabilisation(value) -> float | str:

@@ -320,6 +320,31 @@ def test_a_point_whose_branch_ends_within_the_step_goes_on_from_its_limit_state_
     assert np.abs(slope - fd).max() <= 2e-3 * np.abs(fd).max()
 
 
+def test_the_kernel_passes_limit_points_as_the_plain_loop_of_the_reference_does():
+    """The kernel's continuation past limit points (numba, per point: bisection between the last fraction its
+    solver reached and the one it failed at, warm-started) against the reference's (a loop over arrays of
+    points: bisection of the whole fraction, each trial solved from the start of the rest), on the stored fold
+    point along its line and on the near-failure point (8 limit points): the same limit points, the same
+    stress to 1e-9 of its size (measured: 8e-9 kPa at most, of 24 kPa)."""
+    from material.cpa_reference import follow_past_limits
+
+    model, d, state = _replay_file("footing_fold_point.npz")
+    s = np.array([1.5e-4, 1e-3, 3e-3, 4.0e-3, 4.4e-3])
+    de = d["d_strain"] + s[:, None, None] * d["direction"]
+    sig = np.repeat(d["stress"], s.size, axis=0)
+    st = {k: np.repeat(v, s.size, axis=0) for k, v in state.items()}
+    near, d2, st2 = _replay_file("near_failure_point.npz")
+    for m, args in ((model, (de, sig, st)), (near, (d2["d_strain"], d2["stress"], st2))):
+        out, new, _ = m.update(*args, tangent=False)
+        ref_out, ref_new, ok = follow_past_limits(m, *args)
+        assert ok.all() and (new["status"] == STATUS_OK).all()
+        assert np.array_equal(new["limit_points"], ref_new["limit_points"])
+        assert np.abs(out - ref_out).max() <= 1e-9 * np.abs(ref_out).max()
+        assert np.abs(new["kappa"] - ref_new["kappa"]).max() <= 1e-9 * np.abs(ref_new["kappa"]).max()
+        assert np.array_equal(new["loading"], ref_new["loading"])
+    assert new["limit_points"].tolist() == [8] * d2["stress"].shape[0]
+
+
 def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
     """A point of the thesis-sand footing at 90 % mobilisation whose planes on their curves couple into
     a rate problem with three solutions (not a P-matrix problem; enumerated here with the reference
