@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
+import timeit
 from pathlib import Path
 
 import numpy as np
@@ -41,13 +41,9 @@ def _point(name, copies, s=None):
 
 
 def _best(fn, repeat):
-    fn()  # warm-up (compilation)
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+    """The shortest of `repeat` timed calls, after one untimed call that compiles the kernel."""
+    fn()
+    return min(timeit.repeat(fn, number=1, repeat=repeat))
 
 
 def main(argv=None) -> None:

@@ -859,6 +859,19 @@ def _uniqueness_floor(law, pt, ws, unit):
     return _FLOOR_MARGIN * max(0.0, -lmin)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _keep_start(law, tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading):
+    """The outputs of a failed update: the start of the step, no plane loading, the elastic tangent."""
+    for i in range(6):
+        sig_out[i] = sig_n[i]
+        if tangent:
+            for j in range(6):
+                D_out[i, j] = law.stiff[i, j]
+    for a in range(kap_n.shape[0]):
+        kap_out[a] = kap_n[a]
+        loading[a] = False
+
+
 @njit(cache=True, error_model="numpy")
 def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
                  loading, grad_out, ws):
@@ -1019,14 +1032,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
                     best = max(best, plane[_P_RATIO, a] / eta_f[a])
                 return LIMIT, total_its, halvings, lo, dl_done, best, mu, 0.0
             if halvings > opt.max_halvings:
-                for i in range(6):
-                    sig_out[i] = sig_n[i]
-                    if opt.tangent:
-                        for j in range(6):
-                            D_out[i, j] = law.stiff[i, j]
-                for a in range(M):
-                    kap_out[a] = kap_n[a]
-                    loading[a] = False
+                _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
                 return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu, 0.0
     # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
@@ -1222,14 +1228,7 @@ def update_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_o
                     D_out[i, j] = sig_p[i] if sign > 0.0 else (D_out[i, j] - sig_p[i]) / (2.0 * h)
             de_p[j] = de[j]
     if not ok:
-        for i in range(6):
-            sig_out[i] = sig_n[i]
-            if opt.tangent:
-                for j in range(6):
-                    D_out[i, j] = law.stiff[i, j]
-        for a in range(M):
-            kap_out[a] = kap_n[a]
-            loading[a] = False
+        _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
         return FAILED, its, hv, reached, 0.0, np.nan, mu, 0.0, 0
     for i in range(14):
         grad_out[i] = 0.0
