@@ -24,7 +24,7 @@ import numpy as np
 from material.base import CoupledTangent
 from material.table import jsonable
 
-__all__ = ["Checkpointer", "latest", "load", "restore", "identity_changes", "FORMAT"]
+__all__ = ["Checkpointer", "latest", "load", "restore", "committed_tangent", "identity_changes", "FORMAT"]
 
 FORMAT = "femgran-checkpoint/1"
 
@@ -47,7 +47,8 @@ def _pack_tangent(T) -> dict[str, np.ndarray]:
     return {"tangent": T}
 
 
-def _unpack_tangent(arrays: dict):
+def committed_tangent(arrays: dict):
+    """The committed tangent that a checkpoint's arrays (:func:`load`) hold, or None."""
     T = _unpack_stress_strain(arrays)
     coupled = {k[len("coupled__"):]: arrays[k].copy() for k in arrays if k.startswith("coupled__")}
     if T is None or not coupled:
@@ -130,7 +131,7 @@ def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     pts.stress = arrays["stress"].copy()
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
     pts.revert()
-    solver._committed_tangent = _unpack_tangent(arrays)
+    solver._committed_tangent = committed_tangent(arrays)
     solver._last_increment = None
     if "last_du" in arrays:  # (du, dt) of the last step, and its dc under path control
         solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"]) * scale) + \

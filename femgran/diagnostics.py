@@ -43,7 +43,7 @@ import numpy as np
 from material.base import STATUS_FAILED
 
 __all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
-           "uniqueness_report", "cpa_law"]
+           "uniqueness_report", "cpa_law", "ellipticity_summary", "ellipticity_report"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
@@ -328,3 +328,38 @@ def uniqueness_report(material, stress, state) -> str:
             f"of {mu.size} points of the last converged step; the least step stabilisation that restores it there "
             f"is up to mu = {mu[worst]:.3g} (point {worst}, mean stress {p:.3g} kPa; this run's stabilisation: "
             f"{law.options.stabilisation!r}; docs/cpa_law.md, section 4)")
+
+
+
+def ellipticity_summary(tangent, dim: int, resolution_deg: float = 1.0) -> dict:
+    """Rice's localisation condition on a committed tangent (N, 3, 3, 3, 3), the consistent tangent of a
+    run's last converged step (a gradient law's :class:`material.base.CoupledTangent` gives its
+    d sigma / d eps; :func:`material.localisation.ellipticity`): ``non_elliptic_points``, the points that
+    have lost ellipticity (indicator below -:data:`material.localisation.ONSET`: past the onset), their
+    share ``non_elliptic_fraction`` and the least indicator ``ellipticity_min``. Normals in the model's
+    plane for ``dim`` 2 (plane strain, axisymmetry), over a hemisphere (5 degree grid) for 3. Empty without a tangent (before the first step).
+
+    Where points have lost ellipticity, the body's rate problem admits bands there, and what a local
+    rate-independent law computes beyond may depend on the mesh (``docs/cpa_law.md``, section 4, measures
+    it on the footings)."""
+    from material.localisation import ONSET, ellipticity
+
+    T = getattr(tangent, "dstress_dstrain", tangent)
+    if T is None or np.ndim(T) != 5:
+        return {}
+    plane = (0, 1) if dim == 2 else None
+    ind = ellipticity(T, plane=plane, resolution_deg=resolution_deg if plane else max(resolution_deg, 5.0))
+    ind = ind["indicator"]
+    lost = int(np.sum(ind < -ONSET))
+    return {"non_elliptic_points": lost, "non_elliptic_fraction": lost / max(ind.size, 1),
+            "ellipticity_min": float(ind.min()) if ind.size else float("nan")}
+
+
+def ellipticity_report(summary: dict) -> str:
+    """One sentence from :func:`ellipticity_summary` (empty where every point is elliptic)."""
+    lost = summary.get("non_elliptic_points", 0)
+    if not lost:
+        return ""
+    return (f"the tangent of the last converged step has lost ellipticity (Rice's condition, det(n.D.n) < 0) at "
+            f"{lost} points ({100 * summary['non_elliptic_fraction']:.1f} %): there the body's rate problem admits "
+            "bands, and a local law's results beyond may depend on the mesh (docs/cpa_law.md, section 4)")

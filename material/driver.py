@@ -47,7 +47,7 @@ import numpy as np
 from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
 from material.results import COMPONENTS, ElementResult, standard_columns
 from material.table import TableWriter, read_table
-from material.tensors import MANDEL_WEIGHTS, from_mandel, to_mandel, to_mandel_matrix
+from material.tensors import MANDEL_WEIGHTS, from_mandel, from_mandel_matrix, to_mandel, to_mandel_matrix
 
 __all__ = [
     "COMPONENTS",
@@ -507,7 +507,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     strain_ref = point.strain.copy()
 
     rows_s, rows_e, rows_u = [point.stress], [point.strain - strain_ref], [0.0]
-    rows_stage, rows_it, rows_cut, rows_res = [0], [0], [0], [0.0]
+    rows_stage, rows_it, rows_cut, rows_res, rows_t = [0], [0], [0], [0.0], [tangent0]
     stages = [seg.name or f"segment {i}" for i, seg in enumerate(path.segments)]
     message = ""
     bar = None
@@ -546,6 +546,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
                 rows_it.append(its)
                 rows_cut.append(cuts)
                 rows_res.append(resid)
+                rows_t.append(point.tangent)
                 if log_fh is not None:
                     _log_row(log_fh, step_no, iseg, point.u, point.stress, point.strain - strain_ref)
                 if bar is not None:
@@ -586,7 +587,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     if params is not None and hasattr(params, "to_dict"):
         meta["parameters"] = params.to_dict()
     res = ElementResult(cols, desc, stress, strain, meta, completed=not message, message=message,
-                        final_state=point.state)
+                        final_state=point.state, tangent=from_mandel_matrix(np.array(rows_t)))
     if message:
         if on_failure == "raise":
             raise PathFailure(message, res)
@@ -893,9 +894,34 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     with np.errstate(invalid="ignore", divide="ignore"):
         b = (res["sig2_kPa"] - res["sig3_kPa"]) / (res["sig1_kPa"] - res["sig3_kPa"])
     res.add_column("b", b, "(sigma2 - sigma3)/(sigma1 - sigma3) [-] (NaN at isotropic states)")
+    onset = _bifurcation(res)
     return _finish(res, "plane_strain", params,
-                   {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps},
-                   [("eps_a", "q13_kPa"), ("eps_a", "eps_v")])
+                   {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps,
+                    "bifurcation": onset},
+                   [("eps_a", "q13_kPa"), ("eps_a", "eps_v"), ("eps_a", "rice_indicator")])
+
+
+def _bifurcation(res: ElementResult) -> dict:
+    """Rice's condition along a plane-strain path in the x-z plane (:mod:`material.localisation`): the
+    columns ``rice_indicator`` and ``rice_band_deg`` (inclination from x, the sigma3 axis, of the band whose
+    acoustic tensor is nearest to singular), and the onset: the first row past it (indicator below
+    -:data:`material.localisation.ONSET`), its axial strain and q13, and the band's inclination at the last
+    elliptic row folded into 0..90 deg (the two mirror bands of a symmetric specimen are one). ``None``
+    where the path stays elliptic."""
+    from material.localisation import ONSET, ellipticity
+
+    loc = ellipticity(res.tangent, plane=(0, 2), resolution_deg=0.25)
+    res.add_column("rice_indicator", loc["indicator"], "Rice's localisation indicator of the step's tangent, "
+                   "min over band normals in the x-z plane of det Q / (|Q|/sqrt 2)^2 [-] (< 0: a band can form)")
+    res.add_column("rice_band_deg", loc["band_deg"], "inclination from x (the sigma3 axis) of the band nearest to "
+                   "forming [deg]")
+    lost = np.flatnonzero(loc["indicator"][1:] < -ONSET)
+    if lost.size == 0:
+        return None
+    i = int(lost[0]) + 1
+    band = float(loc["band_deg"][i - 1])
+    return {"row": i, "eps_a": float(res["eps_a"][i]), "q13_kPa": float(res["q13_kPa"][i]),
+            "band_deg": min(band, 180.0 - band)}
 
 
 def true_triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, b: float = 0.5,

@@ -89,6 +89,10 @@ class ElementResult(Table):
         Empty for a completed run, otherwise the reason of the stop.
     final_state : dict or None
         Material state after the last converged step (the dict of the material interface).
+    tangent : (n, 3, 3, 3, 3) ndarray or None
+        The material's tangent d sigma / d eps of each step's last update (row 0: of a zero step from the
+        start), in the global frame; what :mod:`material.localisation` tests for a band. Kept in memory
+        only (None for a table read from a file).
     """
 
     title = "femgran element test result"
@@ -104,6 +108,7 @@ class ElementResult(Table):
         message: str = "",
         final_state: dict | None = None,
         plot_pairs: Iterable[tuple[str, str]] = (),
+        tangent: np.ndarray | None = None,
     ):
         n = len(np.asarray(stress))
         for k, v in columns.items():
@@ -117,6 +122,7 @@ class ElementResult(Table):
         self.message = str(message)
         self.final_state = final_state
         self.plot_pairs = list(plot_pairs)
+        self.tangent = None if tangent is None else np.asarray(tangent, dtype=float)
 
     def __repr__(self) -> str:
         status = "completed" if self.completed else f"STOPPED: {self.message}"

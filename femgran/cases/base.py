@@ -291,11 +291,15 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
                 if problem.stages:
                     sol.stop_reason = f"stage {stage.name!r}: {sol.stop_reason}"
                 break
+    from femgran.diagnostics import ellipticity_report, ellipticity_summary
+
+    localisation = ellipticity_summary(newton._committed_tangent, newton.disc.dim)
     if not sol.completed and not signals:
         from femgran.diagnostics import stall_report, uniqueness_report
 
         for note in (stall_report(newton),
-                     uniqueness_report(newton.points.material, newton.points.stress, newton.points.state)):
+                     uniqueness_report(newton.points.material, newton.points.stress, newton.points.state),
+                     ellipticity_report(localisation)):
             if note:
                 sol.stop_reason = f"{sol.stop_reason}; {note}"
     if writer is not None:
@@ -305,7 +309,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
             ckpt.write(newton, newton.run_state, writer,  # the end, or the last converged step of a stop
                        {k: problem.data[k] for k in problem.persist})
         ckpt.close()  # every checkpoint on disk before the run returns
-    summary = {**case.summarise(sol, problem), **_overstress_summary(newton.points)}
+    summary = {**case.summarise(sol, problem), **_overstress_summary(newton.points), **localisation}
     sol.extra.update(params=params, **summary)
     if out_dir is not None:
         from femgran.output import write_parameters

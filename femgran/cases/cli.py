@@ -267,6 +267,7 @@ def _replay(args) -> int:
               f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
     _print_zero_step_drift(case, material, last)
     _print_uniqueness(case, material, last)
+    _print_ellipticity(case, material, last)
     replays = sorted((dest / "failed_points").glob("*.npz"))
     print(f"  {len(replays)} replay file(s) of failed points in {dest / 'failed_points'} (material.cpa.replay)"
           if replays else "  no material point failed")
@@ -313,6 +314,20 @@ def _print_uniqueness(case, material, checkpoint) -> None:
     note = uniqueness_report(law, arrays["stress"], state)
     print(f"  {note}" if note else
           f"  the rate problem of every one of the {len(arrays['stress'])} points is uniquely solvable at the checkpoint")
+
+
+def _print_ellipticity(case, material, checkpoint) -> None:
+    """Where the checkpoint's committed tangent admits a band (Rice's condition,
+    :func:`femgran.diagnostics.ellipticity_summary`)."""
+    from femgran import checkpoint as ck
+    from femgran.cases.base import build_problem
+    from femgran.diagnostics import ellipticity_report, ellipticity_summary
+
+    arrays = ck.load(checkpoint)[0]
+    summary = ellipticity_summary(ck.committed_tangent(arrays), build_problem(case, material).disc.dim)
+    if summary:
+        print(f"  {ellipticity_report(summary) or 'the tangent of the checkpoint is elliptic at every point'} "
+              f"(least indicator {summary['ellipticity_min']:.3g})")
 
 
 def register(subparsers) -> None:

@@ -108,6 +108,7 @@ def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     assert f"replay of {out} from its checkpoint after step" in text and "residuals" in text
     assert "a zero strain increment over 0.00390625 nominal step(s) moves 0 of" in text  # the thesis's law
     assert "the rate problem of every one of the" in text or "the rate problem has no unique solution" in text
+    assert "elliptic at every point (least indicator" in text or "has lost ellipticity (Rice's condition" in text
     replayed = json.loads((out / "replay" / "status.json").read_text())
     assert replayed["reason"] == stopped["reason"]  # the same step fails the same way, deterministically
 

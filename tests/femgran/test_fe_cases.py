@@ -161,6 +161,24 @@ def test_footing_reports_the_step_stabilisations_overstress(tmp_path):
     assert "stabilisation_overstress_p99" not in plain.extra
 
 
+def test_footing_summary_says_where_the_tangent_has_lost_ellipticity():
+    """Rice's condition on the committed tangent at the end of a run (``non_elliptic_points``). The thesis
+    sand (non-associated flow) loses it under the footing while it still hardens: no point at s = 0.01 B,
+    some at 0.03 B on this mesh (measured: 0 and 6 of 630 at alpha = 90; the default mesh to 0.1 B in
+    docs/cpa_law.md, section 4). An associated, perfectly plastic Drucker-Prager soil at its limit sits at
+    the onset (indicator 0 to round-off: slip lines are admissible) and is not counted."""
+    lost = []
+    for s in (0.01, 0.03):
+        sol = footing(None, 1.0, 18.0, 0.0, True, settlement_m=s, steps=int(round(s / 0.005)), resolution=1,
+                      plots=False, alpha_deg=90.0)
+        assert sol.completed, sol.stop_reason
+        lost.append(sol.extra["non_elliptic_points"])
+    assert lost[0] == 0 and lost[1] > 0 and sol.extra["ellipticity_min"] < 0.0
+    dp = footing(material.DruckerPrager(6000, 0.3, cohesion_kPa=0, friction_deg=30), 1.0, 18.0, 0.0, True,
+                 settlement_m=0.03, steps=6, resolution=1, plots=False)
+    assert dp.completed and dp.extra["non_elliptic_points"] == 0 and abs(dp.extra["ellipticity_min"]) < 1e-12
+
+
 def test_band_angle_of_a_synthetic_band():
     rng = np.random.default_rng(0)
     x = rng.uniform(0, 1, size=(4000, 2))

@@ -1,0 +1,122 @@
+"""Rice's localisation condition: where a tangent admits a band.
+
+A material point whose incremental response is d sigma = D : d eps (``D`` its tangent, d sigma_ij / d eps_kl)
+can develop a band with unit normal n, across which the velocity gradient jumps by g (x) n, when the
+acoustic tensor
+
+    Q_ik(n) = n_j D_ijkl n_l
+
+is singular: det Q(n) = 0 for some n (Hill 1962; Rudnicki & Rice 1975; Rice 1976). While det Q(n) > 0 for
+every n the incremental boundary-value problem is elliptic at the point. Once det Q(n) <= 0 for some n
+it is not: a band is an admissible rate solution, the rate problem of the body loses uniqueness whatever
+the local law's integration, and a rate-independent local continuum has no mesh-objective solution
+past it. Non-associated flow (the CPA law's dilatancy differs from its friction) makes this happen before
+the peak of the stress-strain curve (Rudnicki & Rice 1975); softening makes it happen at the latest
+at the peak. A regularisation with a length (``docs/regularisation.md``) restores a well-posed problem.
+
+:func:`ellipticity` searches the normals on a grid and returns, per point, the scale-free indicator
+
+    min over n of det Q(n) / (|Q(n)| / sqrt(d))^d
+
+(``d`` = 2 for the jump g in a plane, 3 in space; |Q| the Frobenius norm), which lies in [-1, 1], is 1
+for Q = identity, positive while the point is elliptic and <= 0 once a band can form, with the
+inclination of the band (the direction normal to n) at the minimum. For an isotropic elastic solid it is
+4 (1 - 2 nu)(1 - nu) / ((1 - 2 nu)^2 + (2 - 2 nu)^2) in the plane: 0.8 for nu = 0, 0.53 for nu = 0.3.
+
+In plane strain (``plane=(0, 1)``, the x-y plane of the FE cases) n and the jump g lie in the plane: the
+out-of-plane mode, kinematically excluded there, is left out. The functions are numpy, vectorised over
+points and normals.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["acoustic_tensor", "ellipticity", "band_normals", "ONSET"]
+
+#: An indicator within this of 0 is the onset of localisation, not its loss: an associated perfectly plastic
+#: point at its limit sits there to round-off (measured: exactly 0.0 on a Drucker-Prager footing, 1.6e-10 on
+#: the isotropic CPA footing), as slip lines are admissible in a limit state. The indicator is scale-free.
+ONSET = 1e-12
+
+
+def band_normals(plane=(0, 1), resolution_deg: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit normals of candidate bands on a grid of ``resolution_deg``.
+
+    ``plane`` = (i, j) two distinct axes: normals in that plane, n = cos(theta) e_i + sin(theta) e_j,
+    theta in [0, 180) deg; ``plane=None``: over a hemisphere (elevation 0..90 deg from the x-y plane).
+    Returns (normals (K, 3), the band's inclination from e_i [deg] in [0, 180) (the band runs normal to n;
+    for a hemisphere, that of the projection on the x-y plane), the elevation of n [deg] (0 in a plane)).
+    """
+    if not 0.0 < float(resolution_deg) <= 45.0:
+        raise ValueError(f"resolution_deg = {resolution_deg!r}; allowed: 0 < resolution_deg <= 45")
+    step = np.deg2rad(resolution_deg)
+    if plane is None:
+        theta, phi = np.meshgrid(np.arange(0.0, np.pi, step), np.arange(0.0, 0.5 * np.pi + 0.5 * step, step))
+        theta, phi = theta.ravel(), phi.ravel()
+        n = np.stack([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)], axis=1)
+        return n, np.rad2deg(theta + 0.5 * np.pi) % 180.0, np.rad2deg(phi)
+    i, j = _check_plane(plane)
+    theta = np.arange(0.0, np.pi, step)
+    n = np.zeros((theta.size, 3))
+    n[:, i], n[:, j] = np.cos(theta), np.sin(theta)
+    return n, np.rad2deg(theta + 0.5 * np.pi) % 180.0, np.zeros_like(theta)
+
+
+def _check_plane(plane) -> tuple[int, int]:
+    try:
+        i, j = (int(k) for k in plane)
+    except (TypeError, ValueError):
+        raise ValueError(f"plane = {plane!r}; allowed: two distinct axes (i, j) out of 0, 1, 2, or None") from None
+    if i == j or not {i, j} <= {0, 1, 2}:
+        raise ValueError(f"plane = {plane!r}; allowed: two distinct axes (i, j) out of 0, 1, 2, or None")
+    return i, j
+
+
+def _check_tangent(tangent) -> np.ndarray:
+    D = np.asarray(tangent, dtype=float)
+    if D.ndim == 4:
+        D = D[None]
+    if D.ndim != 5 or D.shape[1:] != (3, 3, 3, 3):
+        raise ValueError(f"tangent has shape {np.shape(tangent)}; allowed: (3, 3, 3, 3) or (N, 3, 3, 3, 3)")
+    if not np.all(np.isfinite(D)):
+        raise ValueError(f"tangent: {int(np.sum(~np.isfinite(D).all(axis=(1, 2, 3, 4))))} point(s) have entries "
+                         "that are not finite")
+    return D
+
+
+def acoustic_tensor(tangent, normals) -> np.ndarray:
+    """Q_ik(n) = n_j D_ijkl n_l of each point (N) and normal (K, 3): (N, K, 3, 3)."""
+    D = _check_tangent(tangent)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    return np.einsum("kj,pijml,kl->pkim", n, D, n, optimize=True)
+
+
+def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5) -> dict[str, np.ndarray]:
+    """Rice's condition on N tangents (N, 3, 3, 3, 3) (see the module docstring).
+
+    ``plane`` = (i, j): normals and jumps in the plane of axes i, j (plane strain); ``None``: normals over a
+    hemisphere and jumps in space. Returns ``indicator`` (N,), the least det Q / (|Q| / sqrt d)^d over the
+    normals (<= 0: a band can form), ``band_deg`` (N,), the band's inclination from e_i at that normal
+    (:func:`band_normals`), and for ``plane=None`` ``normal_elevation_deg`` (N,). Points are taken in blocks
+    of about 2^20 / (number of normals), so memory stays near 2^20 acoustic tensors (75 MB) whatever N.
+    A point has lost ellipticity where its indicator is below -:data:`ONSET`.
+    """
+    D = _check_tangent(tangent)
+    normals, band, elevation = band_normals(plane, resolution_deg)
+    axes = list(_check_plane(plane)) if plane is not None else [0, 1, 2]
+    d = len(axes)
+    k_min = np.empty(D.shape[0], dtype=int)
+    value = np.empty(D.shape[0])
+    step = max(2**20 // normals.shape[0], 1)
+    for start in range(0, D.shape[0], step):
+        Q = acoustic_tensor(D[start:start + step], normals)[:, :, axes][:, :, :, axes]
+        size = np.sqrt(np.einsum("pkim,pkim->pk", Q, Q) / d)
+        ratio = np.linalg.det(Q) / np.where(size > 0.0, size, np.inf) ** d
+        k = np.argmin(ratio, axis=1)
+        k_min[start:start + step] = k
+        value[start:start + step] = ratio[np.arange(k.size), k]
+    out = {"indicator": value, "band_deg": band[k_min]}
+    if plane is None:
+        out["normal_elevation_deg"] = elevation[k_min]
+    return out
