@@ -13,9 +13,12 @@ Fields (snake_case; units: m, kPa):
   ``kappa_max`` (CPA: largest plane hardening variable, m), ``stabilisation`` (CPA: the mu of the step
   stabilisation's floor in the last step, 0 where the thesis's law was uniquely solvable, docs/cpa_law.md
   section 4), ``overstress`` (CPA: the largest share of a loading plane's mobilised ratio the step
-  stabilisation carries above the hardening curve in the last step), ``eq_plastic_strain`` (von Mises law),
+  stabilisation carries above the hardening curve in the last step), ``ellipticity`` (Rice's indicator of
+  the committed tangent, :mod:`material.localisation`: below 0 where a band can form; normals on a 1 degree
+  grid in 2D, 10 degrees in 3D), ``eq_plastic_strain`` (von Mises law),
   ``q_kPa`` (sqrt(3 J2)), ``p_kPa`` (mean stress, compression +);
-* cell data: the averages of the same quadrature fields over each element (weighted by dx),
+* cell data: the averages of the same quadrature fields over each element (weighted by dx; for
+  ``ellipticity`` the least value of the element's points),
   ``status`` (max material status in the element) and ``deposition_axis`` (material e2, if the
   material has ``axes``).
 """
@@ -68,6 +71,12 @@ class L2Projector:
         return self._lu.solve(b)
 
 
+#: Fields whose cell data is the least value over the element's points instead of the average: Rice's
+#: indicator, where one point past the onset marks the element (an average hid the 6 points past it among
+#: the 630 of a coarse footing: no element below 0).
+_CELL_MINIMUM = frozenset({"ellipticity"})
+
+
 def point_fields(solver) -> dict[str, np.ndarray]:
     """Quadrature-point fields (N, k) of the committed state, flattened (tensors as 9 components)."""
     pts = solver.points
@@ -85,6 +94,14 @@ def point_fields(solver) -> dict[str, np.ndarray]:
             out[key] = np.asarray(st[key], float).reshape(-1, 1)
     if "kappa" in st:
         out["kappa_max"] = np.asarray(st["kappa"]).max(axis=1)[:, None]
+    tangent = getattr(solver, "_committed_tangent", None)
+    tangent = getattr(tangent, "dstress_dstrain", tangent)
+    if tangent is not None and np.ndim(tangent) == 5:
+        from material.localisation import ellipticity
+
+        plane = (0, 1) if solver.disc.dim == 2 else None
+        rice = ellipticity(tangent, plane=plane, resolution_deg=1.0 if plane else 10.0)
+        out["ellipticity"] = rice["indicator"][:, None]
     return out
 
 
@@ -180,7 +197,8 @@ class SeriesWriter:
         w = disc.dx / disc.dx.sum(axis=1, keepdims=True)
         for key, val in fields.items():
             nodal = self.project(val)
-            cell = np.einsum("eqk,eq->ek", val.reshape(disc.nelems, disc.nqp, -1), w)
+            per_element = val.reshape(disc.nelems, disc.nqp, -1)
+            cell = per_element.min(axis=1) if key in _CELL_MINIMUM else np.einsum("eqk,eq->ek", per_element, w)
             point_data[key] = nodal if nodal.shape[1] > 1 else nodal[:, 0]
             cell_data[key] = [cell if cell.shape[1] > 1 else cell[:, 0]]
         status = np.asarray(solver.points.state["status"]).reshape(disc.nelems, disc.nqp).max(axis=1)

@@ -161,19 +161,24 @@ def test_footing_reports_the_step_stabilisations_overstress(tmp_path):
     assert "stabilisation_overstress_p99" not in plain.extra
 
 
-def test_footing_summary_says_where_the_tangent_has_lost_ellipticity():
+def test_footing_summary_says_where_the_tangent_has_lost_ellipticity(tmp_path):
     """Rice's condition on the committed tangent at the end of a run (``non_elliptic_points``). The thesis
     sand (non-associated flow) loses it under the footing while it still hardens: no point at s = 0.01 B,
     some at 0.03 B on this mesh (measured: 0 and 6 of 630 at alpha = 90; the default mesh to 0.1 B in
     docs/cpa_law.md, section 4). An associated, perfectly plastic Drucker-Prager soil at its limit sits at
     the onset (indicator 0 to round-off: slip lines are admissible) and is not counted."""
+    import meshio
+
     lost = []
     for s in (0.01, 0.03):
         sol = footing(None, 1.0, 18.0, 0.0, True, settlement_m=s, steps=int(round(s / 0.005)), resolution=1,
-                      plots=False, alpha_deg=90.0)
+                      plots=False, alpha_deg=90.0, out=tmp_path / f"s{s}")
         assert sol.completed, sol.stop_reason
         lost.append(sol.extra["non_elliptic_points"])
     assert lost[0] == 0 and lost[1] > 0 and sol.extra["ellipticity_min"] < 0.0
+    # the VTK field of the last step: the same indicator at the points, averaged over each element
+    cells = meshio.read(sorted((tmp_path / "s0.03").glob("footing_*.vtu"))[-1]).cell_data["ellipticity"][0]
+    assert 0 < (cells < 0.0).sum() <= lost[1] and cells.min() >= sol.extra["ellipticity_min"]
     dp = footing(material.DruckerPrager(6000, 0.3, cohesion_kPa=0, friction_deg=30), 1.0, 18.0, 0.0, True,
                  settlement_m=0.03, steps=6, resolution=1, plots=False)
     assert dp.completed and dp.extra["non_elliptic_points"] == 0 and abs(dp.extra["ellipticity_min"]) < 1e-12
