@@ -227,6 +227,11 @@ def _summary(tag: str, res) -> str:
         if col in res:
             bits.append(f"final {col} = {res[col][-1]:.4g}")
             break
+    if "bifurcation" in res.metadata:
+        onset = res.metadata["bifurcation"]
+        bits.append("elliptic throughout (no band by Rice's condition)" if onset is None else
+                    f"a band can form from eps_a = {onset['eps_a']:.4g} (q13 = {onset['q13_kPa']:.4g} kPa), "
+                    f"inclined {onset['band_deg']:.1f} deg to the sigma3 axis")
     if not res.completed:
         bits.append("STOPPED EARLY")
     return ", ".join(bits)

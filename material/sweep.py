@@ -405,7 +405,9 @@ def element(out, test: str = "triaxial", material=None, **driver_kwargs) -> dict
     file, or a ``[material]`` mapping such as ``{"preset": "ottawa_c109", "set": {"beta": 5}, "rule":
     "bazant-oh-33"}``; default: the test's preset). ``test = "path"`` replays ``path_file`` (CSV or TOML,
     ``substeps``). The other keywords go to the driver function (``p0_kPa``, ``alpha_deg``, ``steps``...).
-    Returns the peak stress measure, the final volumetric measure and whether the test reached its end.
+    Returns the peak stress measure, the final volumetric measure, for the plane-strain test Rice's onset
+    (``bifurcation_eps_a``, ``_q13_kPa``, ``_band_deg``; NaN where it stays elliptic) and whether the test
+    reached its end.
     """
     from material import driver
 
@@ -441,5 +443,8 @@ def element(out, test: str = "triaxial", material=None, **driver_kwargs) -> dict
         if col in res:
             summary[f"final_{col}"] = float(res[col][-1])
             break
+    if "bifurcation" in res.metadata:  # the plane-strain test: Rice's onset (NaN where the path stays elliptic)
+        onset = res.metadata["bifurcation"] or {}
+        summary.update({f"bifurcation_{k}": float(onset.get(k, np.nan)) for k in ("eps_a", "q13_kPa", "band_deg")})
     summary.update(completed=bool(res.completed), stop_reason=res.message or "")
     return summary

@@ -90,6 +90,9 @@ def test_plane_strain_and_true_triaxial(hooke):
     dzz = res["sig_zz_kPa"][-1] + 50.0
     assert res["sig_yy_kPa"][-1] + 50.0 == pytest.approx(NU * dzz, rel=1e-10)
     assert np.abs(res["eps_yy"]).max() < 1e-15
+    # Rice's condition on every step's tangent: Hooke's closed form in the plane, no band
+    assert np.allclose(res["rice_indicator"], 4 * (1 - 2 * NU) * (1 - NU) / ((1 - 2 * NU) ** 2 + 4 * (1 - NU) ** 2))
+    assert res.metadata["bifurcation"] is None and res.tangent.shape == (4, 3, 3, 3, 3)
     res = driver.true_triaxial(hooke, p0_kPa=50.0, b=0.25, axial_strain=0.01, steps=3)
     s = -res.stress[-1].diagonal()
     assert (s[1] - s[0]) / (s[2] - s[0]) == pytest.approx(0.25, rel=1e-10)

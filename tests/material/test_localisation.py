@@ -114,3 +114,23 @@ def test_plane_strain_bifurcation_of_the_softening_sand_lies_between_roscoe_and_
         assert abs(onset["band_deg"] - (45.0 + (phi + psi) / 4)) < 1.5
     plain = driver.plane_strain(load_preset("ottawa_c109"), p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.05, steps=100)
     assert plain.metadata["bifurcation"] is None and plain["rice_indicator"].min() > 0.0
+
+
+def test_the_element_sweep_and_its_command_report_the_onset(tmp_path, capsys):
+    """``material.sweep.element`` puts Rice's onset of a plane-strain test into the study's summary (NaN
+    where the path stays elliptic), and ``femgran element plane-strain`` prints it."""
+    from femgran.cli import main
+    from material.sweep import element
+
+    soft = {"preset": "ottawa_c109",
+            "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65}}
+    summary = element(tmp_path / "soft", test="plane-strain", material=soft, p0_kPa=100.0, alpha_deg=0.0,
+                      axial_strain=0.05, steps=100)
+    assert 0.032 < summary["bifurcation_eps_a"] < 0.035 and 60.0 < summary["bifurcation_band_deg"] < 62.5
+    plain = element(tmp_path / "plain", test="plane-strain", p0_kPa=100.0, axial_strain=0.02, steps=20)
+    assert np.isnan(plain["bifurcation_band_deg"]) and "bifurcation_eps_a" not in element(
+        tmp_path / "tx", test="triaxial", p0_kPa=100.0, axial_strain=0.01, steps=5)
+    assert main(["element", "plane-strain", "--p0", "100", "--alpha", "0", "--axial-strain", "0.05", "--steps", "100",
+                 "--set", "E=60000", "--set", "zeta=1.05", "--set", "softening_slip=0.03",
+                 "--set", "residual_ratio=0.65", "--out", str(tmp_path / "cli"), "--no-plot", "--no-progress"]) == 0
+    assert "a band can form from eps_a = 0.033" in capsys.readouterr().out
