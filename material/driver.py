@@ -879,7 +879,9 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
 
     Shear stresses are held at zero. Columns: ``eps_a`` (-eps_zz), ``q13_kPa`` = sigma_a - sigma_xx
     (compression +), ``q_kPa`` = sqrt(3 J2), ``sigma2_kPa`` = -sigma_yy (the out-of-plane stress),
-    ``b`` = (sigma2 - sigma3)/(sigma1 - sigma3) on the principal values.
+    ``b`` = (sigma2 - sigma3)/(sigma1 - sigma3) on the principal values, and Rice's localisation condition
+    on each step's tangent: ``rice_indicator`` (< 0: a band can form), ``rice_band_deg``, and
+    ``metadata["bifurcation"]``, the onset (:func:`_bifurcation`; ``docs/regularisation.md``, section 4).
     """
     p0 = check_positive("p0_kPa", p0_kPa)
     ea = check_positive("axial_strain", axial_strain)
@@ -901,7 +903,7 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
                    [("eps_a", "q13_kPa"), ("eps_a", "eps_v"), ("eps_a", "rice_indicator")])
 
 
-def _bifurcation(res: ElementResult) -> dict:
+def _bifurcation(res: ElementResult) -> dict | None:
     """Rice's condition along a plane-strain path in the x-z plane (:mod:`material.localisation`): the
     columns ``rice_indicator`` and ``rice_band_deg`` (inclination from x, the sigma3 axis, of the band whose
     acoustic tensor is nearest to singular), and the onset: the first row past it (indicator below
