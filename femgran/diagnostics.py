@@ -43,7 +43,8 @@ import numpy as np
 from material.base import STATUS_FAILED
 
 __all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
-           "uniqueness_report", "cpa_law", "ellipticity_summary", "ellipticity_report"]
+           "uniqueness_report", "cpa_law", "rice_indicator", "ellipticity_summary",
+           "ellipticity_report"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
@@ -331,25 +332,36 @@ def uniqueness_report(material, stress, state) -> str:
 
 
 
-def ellipticity_summary(tangent, dim: int, resolution_deg: float = 1.0) -> dict:
-    """Rice's localisation condition on a committed tangent (N, 3, 3, 3, 3), the consistent tangent of a
-    run's last converged step (a gradient law's :class:`material.base.CoupledTangent` gives its
-    d sigma / d eps; :func:`material.localisation.ellipticity`): ``non_elliptic_points``, the points that
-    have lost ellipticity (indicator below -:data:`material.localisation.ONSET`: past the onset), their
-    share ``non_elliptic_fraction`` and the least indicator ``ellipticity_min``. Normals in the model's
-    plane for ``dim`` 2 (plane strain, axisymmetry), over a hemisphere (5 degree grid) for 3. Empty without a tangent (before the first step).
+def rice_indicator(tangent, dim: int, coarse: bool = False):
+    """Rice's indicator (N,) of a committed tangent (N, 3, 3, 3, 3) (:func:`material.localisation.ellipticity`;
+    a gradient law's :class:`material.base.CoupledTangent` gives its d sigma / d eps), or None without one
+    (before the first step). Normals in the model's plane for ``dim`` 2 (plane strain, axisymmetry) on a
+    1 degree grid, over a hemisphere for 3 on a 5 degree grid (``coarse``: 10 degrees, for the field
+    written at every step)."""
+    from material.localisation import ellipticity
+
+    T = getattr(tangent, "dstress_dstrain", tangent)
+    if T is None or np.ndim(T) != 5:
+        return None
+    if dim == 2:
+        return ellipticity(T, plane=(0, 1), resolution_deg=1.0)["indicator"]
+    return ellipticity(T, plane=None, resolution_deg=10.0 if coarse else 5.0)["indicator"]
+
+
+def ellipticity_summary(tangent, dim: int) -> dict:
+    """Rice's localisation condition on a committed tangent, the consistent tangent of a run's last
+    converged step (:func:`rice_indicator`): ``non_elliptic_points``, the points that have lost ellipticity
+    (indicator below -:data:`material.localisation.ONSET`: past the onset), their share
+    ``non_elliptic_fraction`` and the least indicator ``ellipticity_min``. Empty without a tangent.
 
     Where points have lost ellipticity, the body's rate problem admits bands there, and what a local
     rate-independent law computes beyond may depend on the mesh (``docs/cpa_law.md``, section 4, measures
     it on the footings)."""
-    from material.localisation import ONSET, ellipticity
+    from material.localisation import ONSET
 
-    T = getattr(tangent, "dstress_dstrain", tangent)
-    if T is None or np.ndim(T) != 5:
+    ind = rice_indicator(tangent, dim)
+    if ind is None:
         return {}
-    plane = (0, 1) if dim == 2 else None
-    ind = ellipticity(T, plane=plane, resolution_deg=resolution_deg if plane else max(resolution_deg, 5.0))
-    ind = ind["indicator"]
     lost = int(np.sum(ind < -ONSET))
     return {"non_elliptic_points": lost, "non_elliptic_fraction": lost / max(ind.size, 1),
             "ellipticity_min": float(ind.min()) if ind.size else float("nan")}

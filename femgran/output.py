@@ -94,14 +94,11 @@ def point_fields(solver) -> dict[str, np.ndarray]:
             out[key] = np.asarray(st[key], float).reshape(-1, 1)
     if "kappa" in st:
         out["kappa_max"] = np.asarray(st["kappa"]).max(axis=1)[:, None]
-    tangent = getattr(solver, "_committed_tangent", None)
-    tangent = getattr(tangent, "dstress_dstrain", tangent)
-    if tangent is not None and np.ndim(tangent) == 5:
-        from material.localisation import ellipticity
+    from femgran.diagnostics import rice_indicator
 
-        plane = (0, 1) if solver.disc.dim == 2 else None
-        rice = ellipticity(tangent, plane=plane, resolution_deg=1.0 if plane else 10.0)
-        out["ellipticity"] = rice["indicator"][:, None]
+    rice = rice_indicator(getattr(solver, "_committed_tangent", None), solver.disc.dim, coarse=True)
+    if rice is not None:
+        out["ellipticity"] = rice[:, None]
     return out
 
 
