@@ -265,9 +265,12 @@ def _replay(args) -> int:
         print(f"  step {step} try {attempt} (load factor {log['load_factor'][rows][0]:.6g}): residuals {seq}; "
               f"most failed points {int(np.nanmax(log['failed_points'][rows]))}, most switching points "
               f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
-    _print_zero_step_drift(case, material, last)
-    _print_uniqueness(case, material, last)
-    _print_ellipticity(case, material, last)
+    from femgran.cases.base import build_problem
+
+    problem = build_problem(case, material)  # once, for the three reports on the checkpoint
+    _print_zero_step_drift(problem, last)
+    _print_uniqueness(problem, last)
+    _print_ellipticity(problem, last)
     replays = sorted((dest / "failed_points").glob("*.npz"))
     print(f"  {len(replays)} replay file(s) of failed points in {dest / 'failed_points'} (material.cpa.replay)"
           if replays else "  no material point failed")
@@ -276,17 +279,15 @@ def _replay(args) -> int:
     return 0
 
 
-def _print_zero_step_drift(case, material, checkpoint) -> None:
+def _print_zero_step_drift(problem, checkpoint) -> None:
     """How far the material moves the checkpoint's committed stress for a zero strain increment, over a
     nominal step and over the smallest step the cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`);
     a point counts as moved above 1e-9 of its largest stress component (the local solver converges to 1e-12
     of the point's strain scale, so a consistent law stays below it: the thesis sand's footing, 2e-13)."""
     from femgran import checkpoint as ck
-    from femgran.cases.base import build_problem
     from femgran.diagnostics import zero_step_drift
 
     arrays = ck.load(checkpoint)[0]
-    problem = build_problem(case, material)
     state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
     inputs = problem.disc.point_inputs(np.zeros(problem.disc.ndofs))
     for f, rel in zero_step_drift(problem.material, arrays["stress"], state, inputs).items():
@@ -298,15 +299,14 @@ def _print_zero_step_drift(case, material, checkpoint) -> None:
                  "reach an equilibrium next to it)"))
 
 
-def _print_uniqueness(case, material, checkpoint) -> None:
+def _print_uniqueness(problem, checkpoint) -> None:
     """Where the CPA law's rate problem at the checkpoint's committed state has no unique solution, and the
     least uniform step stabilisation that would restore it there (:func:`femgran.diagnostics.uniqueness_report`;
     a sufficient condition, blind to planes that join within a step)."""
     from femgran import checkpoint as ck
-    from femgran.cases.base import build_problem
     from femgran.diagnostics import cpa_law, uniqueness_report
 
-    law = cpa_law(build_problem(case, material).material)
+    law = cpa_law(problem.material)
     if law is None:
         return
     arrays = ck.load(checkpoint)[0]
@@ -316,15 +316,14 @@ def _print_uniqueness(case, material, checkpoint) -> None:
           f"  the rate problem of every one of the {len(arrays['stress'])} points is uniquely solvable at the checkpoint")
 
 
-def _print_ellipticity(case, material, checkpoint) -> None:
+def _print_ellipticity(problem, checkpoint) -> None:
     """Where the checkpoint's committed tangent admits a band (Rice's condition,
     :func:`femgran.diagnostics.ellipticity_summary`)."""
     from femgran import checkpoint as ck
-    from femgran.cases.base import build_problem
     from femgran.diagnostics import ellipticity_report, ellipticity_summary
 
     arrays = ck.load(checkpoint)[0]
-    summary = ellipticity_summary(ck.committed_tangent(arrays), build_problem(case, material).disc.dim)
+    summary = ellipticity_summary(ck.committed_tangent(arrays), problem.disc.dim)
     if summary:
         print(f"  {ellipticity_report(summary) or 'the tangent of the checkpoint is elliptic at every point'} "
               f"(least indicator {summary['ellipticity_min']:.3g})")
