@@ -60,6 +60,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--softening-slip", type=float, default=0.03, help="slip scale of the softening [m]")
     ap.add_argument("--youngs-modulus", type=float, default=60000.0, help="E [kPa]")
     ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
+    ap.add_argument("--element-aspect", type=float, default=1.0,
+                    help="height / width of the elements: 1 squares (diagonals at 45 deg), tan(theta) puts "
+                         "their diagonals at theta from the horizontal (the mesh's own preferred band angle)")
     ap.add_argument("--axial-strain", type=float, default=0.06)
     ap.add_argument("--steps", type=int, default=240, help="nominal load steps")
     ap.add_argument("--stabilisation", type=float, default=0.1,
@@ -90,7 +93,7 @@ def study(args) -> list[Run]:
                         "residual_ratio": 0.65}}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
               "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT, "weak_zone_size": WEAK_ZONE_SIZE,
-              "platens": args.platens}
+              "platens": args.platens, "element_aspect": args.element_aspect}
     if args.length <= 0:
         raise ValueError(f"--length = {args.length!r}: must be > 0 (m)")
     runs = []
@@ -98,15 +101,15 @@ def study(args) -> list[Run]:
         for variant in args.variants:
             law = {**material, "nonlocal_length": args.length} if variant == "gradient" else \
                 {**material, "regularise": variant == "regularised"}
-            runs.append(Run(_tag(n, variant, args.length), "femgran.sweep:case_target",
+            runs.append(Run(_tag(n, variant, args.length, args.element_aspect), "femgran.sweep:case_target",
                             {"case": "biaxial", "fields": {**fields, "resolution": n}, "material": law},
                             {"resolution": n, "variant": variant}))
     return runs
 
 
-def _tag(n: int, variant: str, length: float) -> str:
+def _tag(n: int, variant: str, length: float, aspect: float = 1.0) -> str:
     suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm"}
-    return f"resolution_{n}" + suffix[variant]
+    return f"resolution_{n}" + ("" if aspect == 1.0 else f"_aspect_{aspect:g}") + suffix[variant]
 
 
 def _variant(folder: Path) -> str:

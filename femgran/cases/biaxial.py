@@ -4,7 +4,10 @@ Geometry and axes: x in [0, W], y in [0, H] (H = 2 W), y vertical (loading axis)
 The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Rigid platens, smooth by default:
 bottom u_y = 0 (and u_x = 0 at the corner (0, 0)), top u_y = -eps_a H t, free to slide; rough
 (``platens="rough"``): u_x = 0 on both end faces as well. The confining pressure p0 acts on the two
-vertical faces and is the in-situ stress (-p0 I).
+vertical faces and is the in-situ stress (-p0 I). The mesh is structured, ``resolution`` elements across;
+``element_aspect`` sets their height over their width, so their diagonals, along which a band in a
+structured mesh of linear elements forms most easily, lie at atan(element_aspect) from the x axis (45 deg
+for the default squares): run a second aspect to tell the band's own angle from the mesh's.
 
 Imperfection: the left face is pushed inwards by ``imperfection * W`` in a smooth bump at mid-height
 (a geometric imperfection: every point carries the same material, so any material object works), and
@@ -87,7 +90,7 @@ class Biaxial(Drainage):
     width_m: float = param(0.05, "specimen width W [m] (height 2 W)", flags=("--width",))
     axial_strain: float = param(0.08, "final axial strain [-], compression +")
     steps: int = param(40, "nominal number of load steps")
-    resolution: int = param(8, "elements across the width (2 x as many over the height)")
+    resolution: int = param(8, "elements across the width (2 x as many over the height with element_aspect 1)")
     order: int = param(1, "element order, 1 or 2")
     imperfection: float = param(0.02, "inward bump of the left face at mid-height / W (0: perfect specimen)")
     volumetric: str = param("bbar", "'bbar' or 'standard'")
@@ -98,6 +101,8 @@ class Biaxial(Drainage):
                                        "lateral expansion of the specimen (mean face displacements / W, extension +) "
                                        "drives it to this value and the platen follows, past a snap-back")
     weak_zone_size: float = param(0.2, "side of the weak zone's square / W, in (0, 1]")
+    element_aspect: float = param(1.0, "height / width of the elements (1: squares, whose diagonals lie at 45 deg); "
+                                       "the rows over the height are round(2 resolution / element_aspect)")
 
     def __post_init__(self):
         check_positive("p0_kPa", self.p0_kPa)
@@ -110,6 +115,8 @@ class Biaxial(Drainage):
             raise ValueError(f"platens = {self.platens!r}: allowed 'smooth' or 'rough'")
         if int(self.resolution) < 2:
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 2")
+        if not 0.25 <= check_positive("element_aspect", self.element_aspect) <= 4.0:
+            raise ValueError(f"element_aspect = {self.element_aspect!r}: allowed 0.25 <= element_aspect <= 4")
         if not 0 <= check_positive("weak_zone", self.weak_zone, allow_zero=True) < 0.5:
             raise ValueError(f"weak_zone = {self.weak_zone!r}: allowed 0 <= weak_zone < 0.5")
         check_positive("control_strain", self.control_strain, allow_zero=True)
@@ -125,7 +132,8 @@ class Biaxial(Drainage):
         p0, W, ea, imp, n = float(self.p0_kPa), float(self.width_m), float(self.axial_strain), \
             float(self.imperfection), int(self.resolution)
         H = 2 * W
-        m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, 2 * n + 1))
+        rows = max(2, round(2 * n / float(self.element_aspect)))
+        m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, rows + 1))
         p = m.p.copy()
         p[0] += imp * W * (1 - p[0] / W) * np.exp(-(((p[1] - 0.5 * H) / (0.1 * H)) ** 2))
         m = name_box_boundaries(type(m)(p, m.t))

@@ -416,6 +416,23 @@ def test_weak_zone_is_the_same_region_on_every_mesh_whose_edges_follow_it():
         Biaxial(weak_zone=0.1, weak_zone_size=1.5)
 
 
+def test_biaxial_element_aspect_sets_the_rows_and_is_checked():
+    """element_aspect makes the elements h_y / h_x = aspect (their diagonals at atan(aspect)): the mesh of
+    12 across has round(24 / aspect) rows, the same specimen, and an aspect outside [0.25, 4] is refused."""
+    from femgran.cases.biaxial import Biaxial
+
+    law = material.CPAModel("ottawa_c109")
+    for aspect, rows in ((1.0, 24), (np.tan(np.radians(55.0)), 17), (np.tan(np.radians(35.0)), 34)):
+        problem = Biaxial(resolution=12, imperfection=0.0, element_aspect=aspect).build(law)
+        mesh = problem.disc.mesh
+        assert mesh.t.shape[1] == 12 * rows
+        assert np.ptp(mesh.p[0]) == pytest.approx(0.05) and np.ptp(mesh.p[1]) == pytest.approx(0.10)
+        hy = np.diff(np.unique(mesh.p[1]))
+        assert hy == pytest.approx(np.full(rows, 0.10 / rows))
+    with pytest.raises(ValueError, match=r"element_aspect = 5: allowed 0.25 <= element_aspect <= 4"):
+        Biaxial(element_aspect=5)
+
+
 def test_peak_strains_keep_the_rows_near_the_peak_without_changing_a_persisted_view():
     """The biaxial case keeps the strain of the rows within 1 % of the running peak: on a plateau every
     row, after a new maximum only those near it; each step replaces the persisted arrays and never writes
