@@ -63,6 +63,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--element-aspect", type=float, default=1.0,
                     help="height / width of the elements: 1 squares (diagonals at 45 deg), tan(theta) puts "
                          "their diagonals at theta from the horizontal (the mesh's own preferred band angle)")
+    ap.add_argument("--height-ratio", type=float, default=2.0,
+                    help="specimen height / width (the weak zone stays x < W/6, y < W/3)")
     ap.add_argument("--axial-strain", type=float, default=0.06)
     ap.add_argument("--steps", type=int, default=240, help="nominal load steps")
     ap.add_argument("--stabilisation", type=float, default=0.1,
@@ -92,8 +94,9 @@ def study(args) -> list[Run]:
                 "set": {"E": args.youngs_modulus, "zeta": 1.05, "softening_slip": args.softening_slip,
                         "residual_ratio": 0.65}}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
-              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT, "weak_zone_size": WEAK_ZONE_SIZE,
-              "platens": args.platens, "element_aspect": args.element_aspect}
+              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT * 2.0 / args.height_ratio, "weak_zone_size": WEAK_ZONE_SIZE,
+              "platens": args.platens, "element_aspect": args.element_aspect,
+              "height_ratio": args.height_ratio}
     if args.length <= 0:
         raise ValueError(f"--length = {args.length!r}: must be > 0 (m)")
     runs = []
@@ -101,15 +104,16 @@ def study(args) -> list[Run]:
         for variant in args.variants:
             law = {**material, "nonlocal_length": args.length} if variant == "gradient" else \
                 {**material, "regularise": variant == "regularised"}
-            runs.append(Run(_tag(n, variant, args.length, args.element_aspect), "femgran.sweep:case_target",
+            runs.append(Run(_tag(n, variant, args.length, args.element_aspect, args.height_ratio), "femgran.sweep:case_target",
                             {"case": "biaxial", "fields": {**fields, "resolution": n}, "material": law},
                             {"resolution": n, "variant": variant}))
     return runs
 
 
-def _tag(n: int, variant: str, length: float, aspect: float = 1.0) -> str:
+def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0) -> str:
     suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm"}
-    return f"resolution_{n}" + ("" if aspect == 1.0 else f"_aspect_{aspect:g}") + suffix[variant]
+    shape = ("" if aspect == 1.0 else f"_aspect_{aspect:g}") + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W")
+    return f"resolution_{n}" + shape + suffix[variant]
 
 
 def _variant(folder: Path) -> str:

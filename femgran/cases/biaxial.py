@@ -1,6 +1,6 @@
 """Plane-strain biaxial compression with a small imperfection: localisation in a shear band.
 
-Geometry and axes: x in [0, W], y in [0, H] (H = 2 W), y vertical (loading axis), plane strain in z.
+Geometry and axes: x in [0, W], y in [0, H] (H = ``height_ratio`` W, 2 by default), y vertical (loading axis), plane strain in z.
 The deposition axis e2 is at ``alpha_deg`` from y in the x-y plane. Rigid platens, smooth by default:
 bottom u_y = 0 (and u_x = 0 at the corner (0, 0)), top u_y = -eps_a H t, free to slide; rough
 (``platens="rough"``): u_x = 0 on both end faces as well. The confining pressure p0 acts on the two
@@ -87,10 +87,10 @@ class Biaxial(Drainage):
 
     p0_kPa: float = param(100.0, "confining pressure [kPa]", flags=("--p0",))
     alpha_deg: float = param(0.0, "deposition angle from the vertical y [deg]", flags=("--alpha",))
-    width_m: float = param(0.05, "specimen width W [m] (height 2 W)", flags=("--width",))
+    width_m: float = param(0.05, "specimen width W [m] (height height_ratio W)", flags=("--width",))
     axial_strain: float = param(0.08, "final axial strain [-], compression +")
     steps: int = param(40, "nominal number of load steps")
-    resolution: int = param(8, "elements across the width (2 x as many over the height with element_aspect 1)")
+    resolution: int = param(8, "elements across the width (height_ratio x as many over the height with element_aspect 1)")
     order: int = param(1, "element order, 1 or 2")
     imperfection: float = param(0.02, "inward bump of the left face at mid-height / W (0: perfect specimen)")
     volumetric: str = param("bbar", "'bbar' or 'standard'")
@@ -102,7 +102,8 @@ class Biaxial(Drainage):
                                        "drives it to this value and the platen follows, past a snap-back")
     weak_zone_size: float = param(0.2, "side of the weak zone's square / W, in (0, 1]")
     element_aspect: float = param(1.0, "height / width of the elements (1: squares, whose diagonals lie at 45 deg); "
-                                       "the rows over the height are round(2 resolution / element_aspect)")
+                                       "the rows over the height are round(height_ratio resolution / element_aspect)")
+    height_ratio: float = param(2.0, "specimen height H / width W, in [1, 6]")
 
     def __post_init__(self):
         check_positive("p0_kPa", self.p0_kPa)
@@ -115,6 +116,8 @@ class Biaxial(Drainage):
             raise ValueError(f"platens = {self.platens!r}: allowed 'smooth' or 'rough'")
         if int(self.resolution) < 2:
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 2")
+        if not 1.0 <= check_positive("height_ratio", self.height_ratio) <= 6.0:
+            raise ValueError(f"height_ratio = {self.height_ratio!r}: allowed 1 <= height_ratio <= 6")
         if not 0.25 <= check_positive("element_aspect", self.element_aspect) <= 4.0:
             raise ValueError(f"element_aspect = {self.element_aspect!r}: allowed 0.25 <= element_aspect <= 4")
         if not 0 <= check_positive("weak_zone", self.weak_zone, allow_zero=True) < 0.5:
@@ -131,8 +134,8 @@ class Biaxial(Drainage):
 
         p0, W, ea, imp, n = float(self.p0_kPa), float(self.width_m), float(self.axial_strain), \
             float(self.imperfection), int(self.resolution)
-        H = 2 * W
-        rows = max(2, round(2 * n / float(self.element_aspect)))
+        H = float(self.height_ratio) * W
+        rows = max(2, round(float(self.height_ratio) * n / float(self.element_aspect)))
         m = rectangle(np.linspace(0, W, n + 1), np.linspace(0, H, rows + 1))
         p = m.p.copy()
         p[0] += imp * W * (1 - p[0] / W) * np.exp(-(((p[1] - 0.5 * H) / (0.1 * H)) ** 2))
@@ -184,7 +187,7 @@ class Biaxial(Drainage):
     def summarise(self, sol, problem) -> dict:
         if len(sol.history) > 1:
             return _peak_and_band(sol, problem.data, problem.disc, float(self.p0_kPa), float(self.width_m),
-                                  2 * float(self.width_m), float(self.imperfection))
+                                  float(self.height_ratio) * float(self.width_m), float(self.imperfection))
         nan = float("nan")  # no converged step: nothing to measure
         return dict(**Band.none().summary(), **Band.none().summary("conjugate_"), peak_friction_deg=nan,
                     peak_dilatancy_deg=nan,

@@ -416,9 +416,10 @@ def test_weak_zone_is_the_same_region_on_every_mesh_whose_edges_follow_it():
         Biaxial(weak_zone=0.1, weak_zone_size=1.5)
 
 
-def test_biaxial_element_aspect_sets_the_rows_and_is_checked():
+def test_biaxial_element_aspect_and_height_ratio_set_the_mesh_and_are_checked():
     """element_aspect makes the elements h_y / h_x = aspect (their diagonals at atan(aspect)): the mesh of
-    12 across has round(24 / aspect) rows, the same specimen, and an aspect outside [0.25, 4] is refused."""
+    12 across has round(24 / aspect) rows, the same specimen, and an aspect outside [0.25, 4] is refused;
+    height_ratio sets H / W (rows round(height_ratio n / aspect)), refused outside [1, 6]."""
     from femgran.cases.biaxial import Biaxial
 
     law = material.CPAModel("ottawa_c109")
@@ -431,6 +432,10 @@ def test_biaxial_element_aspect_sets_the_rows_and_is_checked():
         assert hy == pytest.approx(np.full(rows, 0.10 / rows))
     with pytest.raises(ValueError, match=r"element_aspect = 5: allowed 0.25 <= element_aspect <= 4"):
         Biaxial(element_aspect=5)
+    tall = Biaxial(resolution=6, imperfection=0.0, height_ratio=3.0, element_aspect=1.5).build(law).disc.mesh
+    assert tall.t.shape[1] == 6 * 12 and np.ptp(tall.p[1]) == pytest.approx(0.15)
+    with pytest.raises(ValueError, match=r"height_ratio = 0.5: allowed 1 <= height_ratio <= 6"):
+        Biaxial(height_ratio=0.5)
 
 
 def test_peak_strains_keep_the_rows_near_the_peak_without_changing_a_persisted_view():
