@@ -127,3 +127,30 @@ def test_both_arms_of_an_x_are_measured_with_their_own_thickness():
     assert one.localised and not other.localised
     with pytest.raises(ValueError, match=r"family = 'up': allowed \['both', 'rising', 'falling'\]"):
         measure_band(POINTS, single, element_size=h, family="up")
+
+
+def test_the_band_of_the_quadrature_points_of_stretched_meshes_is_not_pulled_to_their_diagonals():
+    """A band of 10 mm at 40, 48 and 55 deg sampled at the quadrature points of the biaxial meshes of 36
+    elements across with element_aspect 0.70, 1 and 1.43 (diagonals at 35, 45, 55 deg) is measured within
+    3 deg (measured: at most 3.0, the 40 deg band on squares read 43.0); the same band sampled at the
+    element centres reads the stretched meshes' diagonals instead (48 deg -> 54.9 deg with aspect 1.43),
+    (the case measures on the quadrature points; docs/regularisation.md, section 4)."""
+    from femgran.band import measure_arms
+    from material import CPAModel
+
+    law = CPAModel("ottawa_c109")
+    for aspect in (np.tan(np.radians(35.0)), 1.0, np.tan(np.radians(55.0))):
+        disc = Biaxial(resolution=36, imperfection=0.0, element_aspect=aspect).build(law).disc
+        xq = disc.quadrature_points()
+        centres = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
+        for theta in (40.0, 48.0, 55.0):
+            normal = np.array([-np.sin(np.radians(theta)), np.cos(np.radians(theta))])
+
+            def field(x):
+                return 0.05 + np.exp(-0.5 * (((x - [W / 2, H / 2]) @ normal) / (0.010 / 2.3548)) ** 2)
+
+            band, _ = measure_arms(xq, field(xq), element_size=float(disc.element_size().max()))
+            assert band.angle_deg == pytest.approx(theta, abs=3.1)
+            if aspect > 1.2 and theta == 48.0:
+                at_centres, _ = measure_arms(centres, field(centres), element_size=W / 36)
+                assert at_centres.angle_deg == pytest.approx(55.0, abs=0.5)
