@@ -64,7 +64,10 @@ def main(argv=None) -> dict:
                     help="height / width of the elements: 1 squares (diagonals at 45 deg), tan(theta) puts "
                          "their diagonals at theta from the horizontal (the mesh's own preferred band angle)")
     ap.add_argument("--height-ratio", type=float, default=2.0,
-                    help="specimen height / width (the weak zone stays x < W/6, y < W/3)")
+                    help="specimen height / width (the weak zone stays x < W/6, y < W/3). With rough platens a "
+                         "band from the weak zone reaches the free face below the top platen only if tan(theta) < "
+                         "H/W - 1/3: 2 bounds it below 59 deg (the finer meshes then form an X at 34-39 deg), 3 "
+                         "leaves room for the Coulomb angle (docs/regularisation.md, section 4)")
     ap.add_argument("--axial-strain", type=float, default=0.06)
     ap.add_argument("--steps", type=int, default=240, help="nominal load steps")
     ap.add_argument("--stabilisation", type=float, default=0.1,
