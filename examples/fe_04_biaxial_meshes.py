@@ -135,6 +135,8 @@ def _say(rec) -> None:
         return
     ref = {k: s.get(f"reference_angles_deg_{k}", float("nan")) for k in ("coulomb", "roscoe", "arthur")}
     band = f"band at {s['band_angle_deg']:.1f} deg" if s.get("localised") else "no localised band"
+    if s.get("localised") and s.get("band_angle_method", "centre line") != "centre line":
+        band += f" ({s['band_angle_method']})"
     print(f"{rec['key']}: peak q {s.get('peak_q_kPa', float('nan')):.1f} kPa; peak phi "
           f"{s.get('peak_friction_deg', float('nan')):.1f}, psi {s.get('peak_dilatancy_deg', float('nan')):.1f} deg; "
           f"{band}; Coulomb {ref['coulomb']:.1f}, Roscoe {ref['roscoe']:.1f}, Arthur {ref['arthur']:.1f} "

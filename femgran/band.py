@@ -83,7 +83,11 @@ class Band:
     half maximum of the intensity profile across it; ``contrast``: the peak's rise over the background,
     relative to the background; ``localised``: whether it is a band (else the other numbers describe the
     most band-like feature of a diffuse field); ``profile``: (distance [m], mean intensity, fitted) across
-    the band, for plots."""
+    the band, for plots; ``angle_method``: ``"centre line"`` when the angle is that of the fitted centre
+    line (module docstring, section 1), else it says why not: ``"line integral (...)"`` when the fit was
+    not taken -- a zone too broad for three full slices, or a fit turning more than :data:`REFINE_DEG`,
+    which follows another feature -- and the angle is the 0.5 deg search's, with its pull toward long
+    strips; ``"none"`` for :meth:`none`."""
 
     angle_deg: float
     direction: tuple[float, float]
@@ -92,18 +96,20 @@ class Band:
     contrast: float
     localised: bool
     profile: tuple[np.ndarray, np.ndarray, np.ndarray]
+    angle_method: str = "centre line"
 
     @staticmethod
     def none() -> "Band":
         nan = float("nan")
         empty = np.zeros(0)
-        return Band(nan, (nan, nan), (nan, nan), nan, nan, False, (empty, empty, empty))
+        return Band(nan, (nan, nan), (nan, nan), nan, nan, False, (empty, empty, empty), "none")
 
     def summary(self, prefix: str = "") -> dict:
         """The scalars for a run's summary (their names with ``prefix``, e.g. ``"conjugate_"``)."""
         return {f"{prefix}band_angle_deg": self.angle_deg, f"{prefix}band_thickness_m": self.thickness_m,
                 f"{prefix}band_contrast": self.contrast, f"{prefix}localised": bool(self.localised),
-                f"{prefix}band_centre_m": [float(c) for c in self.centre]}
+                f"{prefix}band_centre_m": [float(c) for c in self.centre],
+                f"{prefix}band_angle_method": self.angle_method}
 
     @property
     def rising(self) -> bool:
@@ -144,7 +150,7 @@ def _smoothed(d: np.ndarray, w: np.ndarray, width: float) -> tuple[np.ndarray, n
     return origin + step * np.arange(n), np.convolve(binned, kernel, mode="same")
 
 
-def _centre_line(x, w, t: float, c, element_size: float, reach_deg: float) -> float:
+def _centre_line(x, w, t: float, c, element_size: float, reach_deg: float) -> tuple[float, str]:
     """The orientation of the band's centre line, from the orientation t of its largest line integral
     (module docstring, section 1): across slices two elements long along the band, the centres of the
     intensity above the band's half height within its half width (slices that the specimen's edge cuts
@@ -152,7 +158,8 @@ def _centre_line(x, w, t: float, c, element_size: float, reach_deg: float) -> fl
     turns t; repeated until it turns by less than 0.01 deg. A slice is kept when its halves on either side
     of the crest hold point counts within a factor 0.75: with every slice kept, the known band of
     ``tests/femgran/test_band.py`` read 0.4-1.0 deg steep on every mesh, with this rule 0.11 deg at worst.
-    A turn of more than ``reach_deg`` in all leaves t (the line would belong to another feature)."""
+    A turn of more than ``reach_deg`` in all leaves t (the line would belong to another feature).
+    Returns the orientation and how it was found (:attr:`Band.angle_method`)."""
     t0, tol = t, np.radians(0.01)
     for _ in range(20):
         along, normal = np.array([np.cos(t), np.sin(t)]), np.array([-np.sin(t), np.cos(t)])
@@ -169,16 +176,20 @@ def _centre_line(x, w, t: float, c, element_size: float, reach_deg: float) -> fl
         above, below = np.bincount(piece, side, len(mass)), np.bincount(piece, ~side, len(mass))
         full = (mass > 0) & (np.minimum(above, below) >= 0.75 * np.maximum(above, below))
         if full.sum() < 3:
-            return t
+            how = ("centre line (not converged: fewer than 3 full slices after a turn of "
+                   f"{np.degrees(t - t0):+.1f} deg)" if t != t0 else
+                   "line integral (fewer than 3 full slices for a centre line)")
+            return t, how
         s_mid = np.bincount(piece, excess * s[inside])[full] / mass[full]
         d_mid = np.bincount(piece, excess * d[inside])[full] / mass[full]
         turn = float(np.arctan(np.polyfit(s_mid, d_mid, 1, w=np.sqrt(mass[full]))[0]))
         t += turn
         if abs(t - t0) > np.radians(reach_deg):
-            return t0
+            return t0, (f"line integral (the centre line turned more than {reach_deg:g} deg from it: "
+                        f"{np.degrees(t - t0):+.1f})")
         if abs(turn) < tol:
             break
-    return t
+    return t, "centre line"
 
 
 def _crest_strip(crest: float, centres, means, element_size: float) -> int:
@@ -273,7 +284,8 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
     wanted = {"both": np.ones_like(deg, dtype=bool), "rising": deg <= 90.0, "falling": deg >= 90.0}[family]
     coarse = np.radians(deg[(fold >= search[0]) & (fold <= search[1]) & wanted])
     best_t = max(coarse, key=score)
-    best_t = float(_centre_line(x, w, best_t, c, element_size, REFINE_DEG) % np.pi)
+    best_t, method = _centre_line(x, w, best_t, c, element_size, REFINE_DEG)
+    best_t = float(best_t % np.pi)
     normal = np.array([-np.sin(best_t), np.cos(best_t)])
     d = (x - c) @ normal
     centres, means = _strip_means(d, w, 0.5 * element_size)
@@ -305,4 +317,4 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
     return Band(angle, (float(np.cos(best_t)), float(np.sin(best_t))), tuple(float(v) for v in c + off * normal),
                 float(fwhm), float(contrast), localised,
                 (centres, means, np.where((centres >= d_lo) & (centres <= d_hi), model(centres, b_lo, b_hi, amp, off, s),
-                                          np.nan)))
+                                          np.nan)), method)

@@ -22,7 +22,8 @@ zone, W/6 by W/3 at the bottom-left corner, on 6, 12, 18, 24 ... elements across
 The band: measured in the increment of the deviatoric strain between the peak and the last converged
 step (:func:`femgran.band.measure_band`, the bump's own neighbourhood left out): ``band_angle_deg``,
 ``band_thickness_m`` (full width at half maximum of the profile across it), ``band_centre_m``,
-``band_contrast`` and ``localised`` in the summary, the same of the conjugate arm (the best band of the
+``band_contrast``, ``localised`` and ``band_angle_method`` (whether the angle is the fitted centre
+line's) in the summary, the same of the conjugate arm (the best band of the
 other family of orientations, :func:`femgran.band.measure_arms`) as ``conjugate_band_angle_deg`` ...
 ``conjugate_localised``, and ``band.png`` (the field with the band and its conjugate's centre line drawn,
 the profile with its fit). ``band_angle_deg`` is the angle between the band and the
@@ -361,6 +362,7 @@ def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None
             a, b = c2 - L * t2, c2 + L * t2
             ax.plot([a[0], b[0]], [a[1], b[1]], "--" if conjugate.localised else ":", color="w", lw=1.2,
                     label=f"conjugate arm, {conjugate.angle_deg:.1f} deg"
+                          + ("" if conjugate.angle_method == "centre line" else " (line integral)")
                           + (f", {1e3 * conjugate.thickness_m:.2f} mm" if conjugate.localised else ""))
         ax.set_xlim(points[:, 0].min(), points[:, 0].max())
         ax.set_ylim(points[:, 1].min(), points[:, 1].max())
@@ -369,7 +371,8 @@ def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None
         pr.plot(1e3 * dist, fit, "-", label=f"fit: thickness {1e3 * band.thickness_m:.2f} mm" if band.localised
                 else "fit: no band")
     ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]",
-           title=(f"band at {band.angle_deg:.1f} deg" if band.localised else "no localised band"))
+           title=(f"band at {band.angle_deg:.1f} deg" if band.localised else "no localised band")
+           + ("" if band.angle_method in ("centre line", "none") else "\n" + band.angle_method))
     ax.legend(fontsize=7, loc="lower right")
     pr.set(xlabel="distance across the band [mm]", ylabel="deviatoric strain increment",
            title=f"contrast {band.contrast:.2f}")

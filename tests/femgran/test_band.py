@@ -41,6 +41,21 @@ def test_an_x_of_two_bands_is_found_along_one_arm():
     assert band.thickness_m == pytest.approx(0.006, rel=0.2)
 
 
+def test_the_band_says_whether_its_angle_is_its_fitted_centre_line():
+    """A straight band: the angle is the fitted centre line's. An arc (radius 50 mm about the bottom-right
+    corner) has no straight centre line: the fit turns 16.7 deg, beyond REFINE_DEG, so the angle stays the
+    0.5 deg search's and the band says so (the summary's ``band_angle_method``)."""
+    from femgran.band import REFINE_DEG
+
+    straight = measure_band(POINTS, 0.2 + _band(50.0, 0.006), element_size=h)
+    assert straight.angle_method == "centre line" and straight.angle_deg == pytest.approx(50.0, abs=0.2)
+    assert straight.summary()["band_angle_method"] == "centre line"
+    r = np.hypot(POINTS[:, 0] - W, POINTS[:, 1])
+    arc = measure_band(POINTS, 0.2 + np.exp(-0.5 * ((r - 0.05) / 0.0017) ** 2), element_size=h)
+    assert arc.angle_method.startswith(f"line integral (the centre line turned more than {REFINE_DEG:g} deg")
+    assert 2.0 * arc.angle_deg == pytest.approx(round(2.0 * arc.angle_deg), abs=1e-9)  # on the search's grid
+
+
 def test_the_contrast_is_the_rise_over_the_background_under_the_band():
     """A band off the centroid on a sloped background: the background under the band, not at the
     centroid, sets the contrast (the measure does not depend on where the band lies)."""
