@@ -16,7 +16,7 @@ complete) and a drawing step that reads the run folders:
   thickness against the element size (:mod:`femgran.band`), the bands, and the band angle against the
   deposition angle (0, 30, 60, 90: on the middle mesh in the reduced set, the crack band; on the
   coarsest in the full set, the implicit gradient with l = 6 mm to 8 % axial strain on meshes of
-  h <= l / 3).
+  h <= l / 3, specimen H = 3W).
 
 Every PNG has a CSV of the same stem with what it draws; ``OUT/README.md`` lists each figure with a
 sentence on what it shows. The default is a reduced size (coarse meshes, few steps, DEM samples at a
@@ -123,17 +123,22 @@ _BAND_LENGTH_M = 0.006
 
 def _band_setup(full: bool) -> tuple[list[int], int, dict, dict]:
     """Meshes, the mesh of the deposition-angle runs, case fields and material of the shear-band study: the
-    reduced set on coarse meshes with the crack band (minutes); the full set with the implicit gradient to
-    8 % on meshes of h = 0.35, 0.23 and 0.17 l (24, 36 and 48 elements across, multiples of 6, so the
-    weak zone is the same region), the deposition-angle runs on the coarsest. A mesh of h = 0.46 l
-    (18 elements) does not resolve the CPA gradient: its band took another angle and its curve left the
-    finer meshes' by 3 % (docs/regularisation.md, section 4)."""
-    fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_height": 1.0 / 12.0, "weak_zone_size": 1.0 / 3.0,
-             "imperfection": 0.0}
+    reduced set on coarse meshes with the crack band (minutes), specimen H = 2W; the full set with the
+    implicit gradient to 8 % on meshes of h = 0.35, 0.23 and 0.17 l (24, 36 and 48 elements across,
+    multiples of 6, so the weak zone is the same region), the deposition-angle runs on the coarsest, on a
+    specimen H = 3W. On H = 2W between rough platens a band from the weak zone reaches the free face below
+    the top platen only if tan theta < H/W - 1/3 (theta < 59 deg), and the finer meshes formed an X at
+    34-40 deg bounding the blocks the platens hold; on H = 3W (theta < 69.4 deg) one band runs at
+    65.5-66.9 deg on 24, 30 and 36 elements, between Roscoe and Coulomb (docs/regularisation.md,
+    section 4). The weak zone stays at W/6 above the bottom (``weak_zone_height`` 1/18 of H). A mesh of
+    h = 0.46 l (18 elements) does not resolve the CPA gradient: its band took another angle and its curve
+    left the finer meshes' by 3 % (ibid.)."""
+    fixed = {"platens": "rough", "weak_zone": 0.1, "weak_zone_size": 1.0 / 3.0, "imperfection": 0.0}
     if full:
-        return [24, 36, 48], 24, {**fixed, "axial_strain": 0.08, "steps": 320}, \
+        return [24, 36, 48], 24, {**fixed, "height_ratio": 3.0, "weak_zone_height": 1.0 / 18.0,
+                                  "axial_strain": 0.08, "steps": 320}, \
             {**_BAND_MATERIAL, "nonlocal_length": _BAND_LENGTH_M}
-    return [4, 6, 8], 6, {**fixed, "axial_strain": 0.05, "steps": 60}, _BAND_MATERIAL
+    return [4, 6, 8], 6, {**fixed, "weak_zone_height": 1.0 / 12.0, "axial_strain": 0.05, "steps": 60}, _BAND_MATERIAL
 
 
 def _band_regularisation(full: bool) -> str:
@@ -292,7 +297,8 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     _tidy(a1, a2, a3)
     fig.tight_layout()
     save_figure(fig, out / "shear_band_meshes.png")
-    fig, axes = plt.subplots(1, len(runs), figsize=(2.6 * len(runs), 4.2), squeeze=False)
+    tall = float(runs[0][1]["kwargs"]["fields"].get("height_ratio", 2.0))  # H / W of the specimen
+    fig, axes = plt.subplots(1, len(runs), figsize=(2.6 * len(runs), 1.6 + 1.3 * tall), squeeze=False)
     for ax, (key, _), h_mm in zip(axes[0], runs, sizes):
         pc = _field_panel(ax, runs_dir / key, "biaxial", f"h = {h_mm:.2f} mm")
     fig.colorbar(pc, ax=axes[0].tolist(), label="|plastic strain|", shrink=0.8)

@@ -373,7 +373,7 @@ def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None
     ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]",
            title=(f"band at {band.angle_deg:.1f} deg" if band.localised else "no localised band")
            + ("" if band.angle_method in ("centre line", "none") else "\n" + band.angle_method))
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12))  # below: the field stays clear
     pr.set(xlabel="distance across the band [mm]", ylabel="deviatoric strain increment",
            title=f"contrast {band.contrast:.2f}")
     pr.legend(fontsize=8)
