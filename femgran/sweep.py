@@ -74,8 +74,9 @@ def kinds() -> dict[str, str]:
 def case_target(out, case: str, fields: Mapping | None = None, material=None, solver=None,
                 checkpoint_every: int = 0) -> dict:
     """Sweep target: the boundary-value case ``case`` with ``fields`` into ``out``; returns its scalar
-    summary (the case's headline and the rest of ``Solution.extra``: scalars, and ``{k}_{sub}`` for a mapping
-    of scalars), ``completed``, ``stop_reason`` and ``steps``.
+    summary (the case's headline and the rest of ``Solution.extra``: scalars and strings, and ``{k}_{sub}``
+    for a mapping of them; ``summary.csv`` keeps the numbers, ``sweep.json`` all), ``completed``,
+    ``stop_reason`` and ``steps``.
 
     A run folder that holds a checkpoint of this run (a study interrupted mid-run) continues from it."""
     from femgran import checkpoint as ck
@@ -87,11 +88,11 @@ def case_target(out, case: str, fields: Mapping | None = None, material=None, so
     sol = run(cls(**dict(fields or {})), material, solver=solver,
               output=Output(out, progress=False, checkpoint_every=checkpoint_every), resume=resume)
     summary: dict[str, Any] = {}
-    for k, v in sol.extra.items():  # scalars, and mappings of scalars one level deep (k_sub); not the inputs
+    for k, v in sol.extra.items():  # scalars and strings, and mappings of them one level deep (k_sub); not the inputs
         if k == "params":
             continue
         for name, x in (v.items() if isinstance(v, Mapping) else [(None, v)]):
-            if isinstance(x, (bool, int, float, np.bool_, np.integer, np.floating)):
+            if isinstance(x, (bool, int, float, str, np.bool_, np.integer, np.floating)):
                 summary[k if name is None else f"{k}_{name}"] = x.item() if hasattr(x, "item") else x
     summary.update(completed=bool(sol.completed), stop_reason=sol.stop_reason, steps=len(sol.history) - 1)
     return summary
