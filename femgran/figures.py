@@ -129,7 +129,7 @@ def _band_setup(full: bool) -> tuple[list[int], int, dict, dict]:
     specimen H = 3W. On H = 2W between rough platens a band from the weak zone reaches the free face below
     the top platen only if tan theta < H/W - 1/3 (theta < 59 deg), and the finer meshes formed an X at
     34-40 deg bounding the blocks the platens hold; on H = 3W (theta < 69.4 deg) one band runs at
-    65.5-66.9 deg on 24, 30 and 36 elements, between Roscoe and Coulomb (docs/regularisation.md,
+    66.4-66.9 deg on 24, 30 and 36 elements, between Roscoe and Coulomb (docs/regularisation.md,
     section 4). The weak zone stays at W/6 above the bottom (``weak_zone_height`` 1/18 of H). A mesh of
     h = 0.46 l (18 elements) does not resolve the CPA gradient: its band took another angle and its curve
     left the finer meshes' by 3 % (ibid.)."""
@@ -301,6 +301,9 @@ def _band_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> dict:
     fig, axes = plt.subplots(1, len(runs), figsize=(2.6 * len(runs), 1.6 + 1.3 * tall), squeeze=False)
     for ax, (key, _), h_mm in zip(axes[0], runs, sizes):
         pc = _field_panel(ax, runs_dir / key, "biaxial", f"h = {h_mm:.2f} mm")
+    for ax in axes[0][1:]:  # one y axis for the row: the panels' labels would run into their neighbours
+        ax.set_ylabel("")
+        ax.tick_params(labelleft=False)
     fig.colorbar(pc, ax=axes[0].tolist(), label="|plastic strain|", shrink=0.8)
     save_figure(fig, out / "shear_band_fields.png")
     return {**drawn,
