@@ -188,8 +188,8 @@ def _centre_line(x, w, t: float, c, element_size: float, reach_deg: float) -> tu
             return t0, (f"line integral (the centre line turned more than {reach_deg:g} deg from it: "
                         f"{np.degrees(t - t0):+.1f})")
         if abs(turn) < tol:
-            break
-    return t, "centre line"
+            return t, "centre line"
+    return t, f"centre line (not converged: its last turn {np.degrees(turn):+.3f} deg after 20 fits)"
 
 
 def _crest_strip(crest: float, centres, means, element_size: float) -> int:
