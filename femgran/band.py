@@ -112,6 +112,11 @@ class Band:
                 f"{prefix}band_angle_method": self.angle_method}
 
     @property
+    def from_line_integral(self) -> bool:
+        """Whether the angle is the 0.5 deg search's, the centre-line fit not taken (:attr:`angle_method`)."""
+        return self.angle_method.startswith("line integral")
+
+    @property
     def rising(self) -> bool:
         """Whether the band's direction rises along x (0 to 90 deg from the x axis; else it falls)."""
         return bool(self.direction[0] * self.direction[1] >= 0.0)

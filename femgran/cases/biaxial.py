@@ -362,7 +362,7 @@ def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None
             a, b = c2 - L * t2, c2 + L * t2
             ax.plot([a[0], b[0]], [a[1], b[1]], "--" if conjugate.localised else ":", color="w", lw=1.2,
                     label=f"conjugate arm, {conjugate.angle_deg:.1f} deg"
-                          + ("" if conjugate.angle_method == "centre line" else " (line integral)")
+                          + (" (line integral)" if conjugate.from_line_integral else "")
                           + (f", {1e3 * conjugate.thickness_m:.2f} mm" if conjugate.localised else ""))
         ax.set_xlim(points[:, 0].min(), points[:, 0].max())
         ax.set_ylim(points[:, 1].min(), points[:, 1].max())

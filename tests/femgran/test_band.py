@@ -53,6 +53,7 @@ def test_the_band_says_whether_its_angle_is_its_fitted_centre_line():
     r = np.hypot(POINTS[:, 0] - W, POINTS[:, 1])
     arc = measure_band(POINTS, 0.2 + np.exp(-0.5 * ((r - 0.05) / 0.0017) ** 2), element_size=h)
     assert arc.angle_method.startswith(f"line integral (the centre line turned more than {REFINE_DEG:g} deg")
+    assert arc.from_line_integral and not straight.from_line_integral
     assert 2.0 * arc.angle_deg == pytest.approx(round(2.0 * arc.angle_deg), abs=1e-9)  # on the search's grid
 
 
