@@ -31,6 +31,8 @@ to the material and the material's tangent back to :meth:`internal_force` and :m
 
 from __future__ import annotations
 
+from typing import Callable, NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -40,11 +42,59 @@ from skfem.helpers import dot, grad
 from femgran.assembly import Discretisation
 from material.base import CoupledTangent
 
-__all__ = ["GradientDiscretisation", "NONLOCAL_ELEMENTS"]
+__all__ = ["GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "one_dimensional_band"]
 
 #: The linear Lagrange element of ebar on each mesh type.
 NONLOCAL_ELEMENTS = {"MeshHex1": "ElementHex1", "MeshTet1": "ElementTetP1", "MeshQuad1": "ElementQuad1",
                      "MeshTri1": "ElementTriP1"}
+
+
+class OneDimensionalBand(NamedTuple):
+    """The plastic zone of the over-nonlocal implicit gradient in one dimension (:func:`one_dimensional_band`)."""
+
+    zone_width_m: float  #: full width of the zone where the plastic strain grows [m]
+    fwhm_m: float        #: full width at half maximum of its growth profile [m]
+    profile: Callable[[np.ndarray], np.ndarray]  #: the growth rate across the zone, 1 at its centre, 0 outside
+
+
+def one_dimensional_band(length_m: float, over_nonlocal: float = 2.0) -> OneDimensionalBand:
+    """The width of the localised plastic zone of the over-nonlocal implicit gradient, in closed form.
+
+    A bar of uniform stress softens with kappa_hat = m ebar + (1 - m) kappa, ebar - l^2 ebar'' = kappa. In
+    the zone where it loads, sigma_y(kappa_hat) is the bar's stress, so the rate of kappa_hat is the same at
+    every point of the zone, whatever the softening law: d kappa_hat = C. Eliminating d kappa,
+
+        d ebar + (m - 1) l^2 d ebar'' = C        inside:  d ebar = C + B cos(x / lam),  lam = l sqrt(m - 1),
+        d ebar - l^2 d ebar'' = 0                outside: exponentials decaying over l,
+
+    and at the zone's edges x = +-w/2 the plastic rate d kappa = (m d ebar - C) / (m - 1) vanishes and
+    d ebar is smooth. These conditions give tan(w / (2 lam)) = -1 / sqrt(m - 1), so with
+    theta = pi - arctan(1 / sqrt(m - 1)) in (pi/2, pi)
+
+        w = 2 theta lam,      d kappa(x) / d kappa(0) = (cos theta - cos(x / lam)) / (cos theta - 1),
+
+    and the profile's full width at half maximum is 2 lam arccos((1 + cos theta) / 2). For the default
+    m = 2: w = 1.5 pi l = 4.71 l and the FWHM is 2.85 l; with m -> 1 both go to zero (the nonlocal variable
+    alone lets the zone shrink, Jirasek & Rolshoven 2003), and for large m the zone approaches 2 pi lam.
+    The width does not depend on the softening modulus, only on l and m: it is the band thickness the
+    regularisation sets, against which the plane-strain bands of ``docs/regularisation.md`` are measured
+    (the bar of ``tests/femgran/test_gradient.py`` checks it on the finite-element solution).
+    """
+    ell = float(length_m)
+    m = float(over_nonlocal)
+    if not (np.isfinite(ell) and ell > 0.0):
+        raise ValueError(f"length_m = {length_m!r}: must be a finite length > 0 [m]")
+    if not (np.isfinite(m) and m > 1.0):
+        raise ValueError(f"over_nonlocal = {over_nonlocal!r}: must be > 1 (with 1 the zone has no width)")
+    lam = ell * np.sqrt(m - 1.0)
+    theta = np.pi - np.arctan(1.0 / np.sqrt(m - 1.0))
+    c = np.cos(theta)
+
+    def profile(x):
+        x = np.abs(np.asarray(x, dtype=float))
+        return np.where(x < theta * lam, (c - np.cos(np.minimum(x, theta * lam) / lam)) / (c - 1.0), 0.0)
+
+    return OneDimensionalBand(2.0 * theta * lam, 2.0 * lam * float(np.arccos(0.5 * (1.0 + c))), profile)
 
 
 class GradientDiscretisation(Discretisation):

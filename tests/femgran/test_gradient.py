@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from femgran.assembly import Discretisation, discretisation_for
-from femgran.gradient import GradientDiscretisation
+from femgran.gradient import GradientDiscretisation, one_dimensional_band
 from femgran.mesh import name_box_boundaries, rectangle
 from femgran.solver import Dirichlet, NewtonSolver, PathControl
 from material import GradientVonMises, VonMises
@@ -80,6 +80,48 @@ def test_bad_parameters_are_named():
         GradientVonMises(E, NU, SY, 5000.0, length_m=0.1, over_nonlocal=20.0)
     with pytest.raises(ValueError, match="length = -1"):
         GradientDiscretisation(rectangle(np.linspace(0, 1, 3), np.linspace(0, 1, 3)), 1, length=-1.0, scale=E)
+
+
+@pytest.mark.parametrize("m", [1.2, 2.0, 4.0])
+def test_the_closed_form_band_is_the_widest_zone_of_the_discrete_rate_problem(m):
+    """The rate problem of one_dimensional_band by finite differences (h = l/50 on 24 l, zero flux at the
+    ends): for a plastic zone |x| <= a the plastic rate comes out positive everywhere in it with a jump to 0
+    at its edges when a < w/2, negative near its edges when a > w/2; the zone whose edge rate is 0 (found by
+    bisection) is the closed form's, to a grid cell, and so is its profile."""
+    import scipy.sparse as sparse
+    import scipy.sparse.linalg as sparse_linalg
+
+    ell, n = 1.0, 1201
+    x = np.linspace(-12 * ell, 12 * ell, n)
+    h = x[1] - x[0]
+    lap = sparse.diags([np.ones(n - 1), -2 * np.ones(n), np.ones(n - 1)], [-1, 0, 1], format="lil") / h**2
+    lap[0, 1] = lap[n - 1, n - 2] = 2 / h**2
+    helm = sparse.eye(n) - ell**2 * lap.tocsr()
+
+    def plastic_rate(a):
+        """d kappa for the zone |x| <= a: d ebar - l^2 d ebar'' = d kappa, m d ebar + (1 - m) d kappa = 1."""
+        k = np.flatnonzero(np.abs(x) <= a)
+        P = sparse.csr_matrix((np.ones(k.size), (k, np.arange(k.size))), shape=(n, k.size))
+        A = sparse.bmat([[helm, -P], [m * P.T, (1 - m) * sparse.eye(k.size)]], format="csc")
+        rate = np.zeros(n)
+        rate[k] = sparse_linalg.spsolve(A, np.concatenate([np.zeros(n), np.ones(k.size)]))[n:]
+        return rate, k[-1]
+
+    closed = one_dimensional_band(ell, m)
+    lo, hi = 0.25 * closed.zone_width_m, closed.zone_width_m
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        rate, edge = plastic_rate(mid)
+        lo, hi = (mid, hi) if rate[edge] > 0 else (lo, mid)
+    rate, _ = plastic_rate(lo)
+    assert 2 * lo == pytest.approx(closed.zone_width_m, abs=2 * h)
+    assert np.ptp(x[rate >= 0.5 * rate.max()]) == pytest.approx(closed.fwhm_m, abs=2 * h)
+    assert np.abs(rate / rate.max() - closed.profile(x)).max() < 0.02
+    assert plastic_rate(0.6 * closed.zone_width_m)[0].min() < 0  # a wider zone is not admissible
+    with pytest.raises(ValueError, match="over_nonlocal = 1.0"):
+        one_dimensional_band(ell, 1.0)
+    with pytest.raises(ValueError, match="length_m = 0"):
+        one_dimensional_band(0.0)
 
 
 def _bar(n, ell, *, imperfection=0.05, local=False, order=1):
@@ -167,9 +209,11 @@ def test_softening_bar_converges_with_the_mesh_and_its_zone_scales_with_the_leng
     assert abs(forces[40] - forces[80]) < 0.01 * peak and abs(forces[20] - forces[80]) < 0.02 * peak
     widths = {n: r[1] for n, r in runs.items()}
     assert max(widths.values()) - min(widths.values()) <= L / 80 * 2.01  # the same zone, to two fine elements
-    assert 2.5 * 0.1 <= widths[80] <= 3.5 * 0.1
+    # the closed form of the one-dimensional zone (FWHM 2.85 l for m = 2): measured 0.275 on 80 elements
+    assert widths[80] == pytest.approx(one_dimensional_band(0.1).fwhm_m, abs=1.01 * L / 80)
     half = {n: _run(n, 0.05)[1] for n in (40, 80)}
     assert half[80] == pytest.approx(0.5 * widths[80], abs=2.01 * L / 80)  # zone proportional to l
+    assert half[80] == pytest.approx(one_dimensional_band(0.05).fwhm_m, abs=1.01 * L / 80)  # measured 0.15
     assert abs(half[40] - half[80]) <= 2.01 * L / 80
     assert max(r[0].history["iterations"][1:].mean() for r in runs.values()) < 2.5  # Newton stays fast
     # the local law: at the same elongation 6e-3 the force follows the mesh (measured 6.23 / 3.45 kN/m)
