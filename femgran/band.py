@@ -58,7 +58,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Band", "measure_band", "measure_arms", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
+__all__ = ["Band", "measure_band", "measure_arms", "band_history", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
 
 #: The families of band orientations :func:`measure_band` searches: both, or the band's direction rising
 #: (0 to 90 deg from the x axis) or falling (90 to 180 deg).
@@ -323,3 +323,87 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
                 float(fwhm), float(contrast), localised,
                 (centres, means, np.where((centres >= d_lo) & (centres <= d_hi), model(centres, b_lo, b_hi, amp, off, s),
                                           np.nan)), method)
+
+
+def band_history(run_folder, window: float = 0.005, *, name: str = "biaxial"):
+    """The band active in each window of axial strain after the peak, from a run folder's VTK series.
+
+    The summary's band is that of the whole post-peak strain increment; a band that forms, narrows or hands
+    over to another one shows only here. Each window starts where the last ended, the first at the first
+    written step within 1 % of the peak deviator (as the summary's band does), and spans ``window`` of axial
+    strain (to the nearest written step; the last window is what remains when that is half a window or more,
+and a window longer than the whole post-peak path is that path). In each, the intensity is the deviatoric strain increment of the
+    element averages (the VTK cell field ``strain``) and both arms are measured (:func:`measure_arms`).
+
+    Returns a :class:`material.table.Table`, one row per window: ``eps_from``, ``eps_to``, ``q_from_kPa``,
+    ``q_to_kPa``, and for the stronger arm and the other one (``conjugate_``) ``angle_deg``, ``thickness_m``,
+    ``contrast``, ``localised`` (1 / 0) and ``rising`` (1 / 0). ``femgran band RUN_FOLDER`` writes it as
+    ``band_history.csv``.
+    """
+    from pathlib import Path
+
+    import meshio
+
+    from femgran.output import read_pvd
+    from material.table import Table, read_table
+
+    w = float(window)
+    if not (np.isfinite(w) and w > 0.0):
+        raise ValueError(f"window = {window!r}: must be an axial strain > 0 (e.g. 0.005)")
+    folder = Path(run_folder)
+    pvd, hist_path = folder / f"{name}.pvd", folder / "history.csv"
+    for path in (pvd, hist_path):
+        if not path.is_file():
+            raise FileNotFoundError(f"run_folder = {str(folder)!r}: no {path.name} (a run folder of a case with "
+                                    f"VTK output, name {name!r}, is needed)")
+    hist = read_table(hist_path)
+    for col in ("load_factor", "eps_a", "q_kPa"):
+        if col not in hist:
+            raise ValueError(f"run_folder = {str(folder)!r}: its history has no column {col!r} (a biaxial or "
+                             f"triaxial run is needed)")
+    t, eps, q = hist["load_factor"], hist["eps_a"], hist["q_kPa"]
+    written = []  # (history row, vtu file) of each written step
+    for step_t, path in read_pvd(pvd):
+        rows = np.flatnonzero(np.isclose(t, step_t, rtol=0.0, atol=1e-9 * max(1.0, abs(step_t))))
+        if rows.size:
+            written.append((int(rows[-1]), path))
+    if len(written) < 2:
+        raise ValueError(f"run_folder = {str(folder)!r}: fewer than two written steps")
+    w_rows = np.array([r for r, _ in written])
+    w_eps, w_q = eps[w_rows], q[w_rows]
+    start = int(np.flatnonzero(w_q >= 0.99 * np.nanmax(q))[0])
+    cache = {}
+
+    def cells(i):
+        if i not in cache:
+            m = meshio.read(written[i][1])
+            corners = m.points[m.cells[0].data][:, :, :2]
+            strain = np.asarray(m.cell_data["strain"][0], dtype=float).reshape(-1, 3, 3)
+            size = float(np.ptp(corners, axis=1).max())
+            cache.clear()  # windows are consecutive: keep the last step only
+            cache[i] = (corners.mean(axis=1), strain, size)
+        return cache[i]
+
+    table = Table(metadata={"run_folder": folder.name, "window": w, "intensity":
+                            "deviatoric strain increment over the window, VTK element averages"})
+    i0 = start
+    while True:
+        target = w_eps[i0] + w
+        if target > w_eps[-1] + 0.5 * w and len(table):  # less than half a window left
+            break
+        i1 = int(np.argmin(np.abs(w_eps - min(target, w_eps[-1]))))
+        if i1 <= i0:
+            break
+        x, e0, _ = cells(i0)
+        _, e1, size = cells(i1)
+        d = e1 - e0
+        dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+        band, other = measure_arms(x, np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev)), element_size=size)
+        row = {"eps_from": w_eps[i0], "eps_to": w_eps[i1], "q_from_kPa": w_q[i0], "q_to_kPa": w_q[i1]}
+        for prefix, b in (("", band), ("conjugate_", other)):
+            row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
+                        f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
+                        f"{prefix}rising": float(b.rising)})
+        table.append(row)
+        i0 = i1
+    return table

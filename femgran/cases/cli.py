@@ -329,6 +329,26 @@ def _print_ellipticity(problem, checkpoint) -> None:
               f"(least indicator {summary['ellipticity_min']:.3g})")
 
 
+def _band_history(args) -> int:
+    from femgran.band import band_history
+
+    table = band_history(args.run_folder, args.window, name=args.name)
+    path = table.write_csv(Path(args.run_folder) / "band_history.csv")
+    print(f"{'axial strain [%]':>18} {'q [kPa]':>15}   band: angle [deg], thickness [mm], contrast   | other arm")
+    for r in table.rows():
+        arms = []
+        for prefix in ("", "conjugate_"):
+            if r[prefix + "localised"]:
+                arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
+                            f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f}")
+            else:
+                arms.append(f"{'no band':>26}")
+        print(f"{100 * r['eps_from']:8.2f} -{100 * r['eps_to']:6.2f}   {r['q_from_kPa']:6.1f} -{r['q_to_kPa']:6.1f}   "
+              f"{arms[0]}   | {arms[1]}")
+    print(f"-> {path}")
+    return 0
+
+
 def register(subparsers) -> None:
     """Add one subcommand per case (its fields as flags) and ``run``."""
     from femgran.cases.casefile import case_types
@@ -358,6 +378,14 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=None, help="where the replay writes (default RUN_FOLDER/replay)")
     _solver_flags(p)
     p.set_defaults(func=_replay)
+
+    p = subparsers.add_parser("band", help="the band active in each window of axial strain after the peak",
+                              description=__import__("femgran.band", fromlist=["x"]).band_history.__doc__.split("\n\n")[0]
+                              + " Writes RUN_FOLDER/band_history.csv and prints it.")
+    p.add_argument("run_folder", help="the folder of a biaxial (or triaxial) run with its VTK series")
+    p.add_argument("--window", type=float, default=0.005, help="axial strain of each window (default 0.005)")
+    p.add_argument("--name", default="biaxial", help="the case's name, of NAME.pvd (default biaxial)")
+    p.set_defaults(func=_band_history)
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,
                               description=__import__("femgran.cases.casefile", fromlist=["x"]).__doc__)
