@@ -1357,7 +1357,10 @@ class _CurveProblem:
         if sv.min() > 1e-6 * sv.max():
             return
         names = self.space.names
-        combo = ", ".join(f"{n} {vt[-1, k]:+.2f}" for k, n in enumerate(names) if abs(vt[-1, k]) > 0.05)
+        # a singular vector is defined up to its sign, which the SVD leaves to round-off (it flipped between
+        # machines on the same curves): print it with its largest component positive
+        direction = vt[-1] * np.sign(vt[-1, np.argmax(np.abs(vt[-1]))])
+        combo = ", ".join(f"{n} {direction[k]:+.2f}" for k, n in enumerate(names) if abs(direction[k]) > 0.05)
         raise ValueError(
             f"free = {list(names)}: these curves do not determine them separately; the response does not change "
             f"along the direction ({combo}) of the scaled variables (log of positive constants). Fix one of "
