@@ -491,7 +491,7 @@ class CPAModel:
         new_sig = _k.from_mandel(sig_out)
         # plastic strain increment: the part of d_eps the elastic compliance does not explain (exact at
         # the converged residual; it includes the cut-off's opening)
-        d_eps_p = _k.from_mandel(np.ascontiguousarray(de6 - (sig_out - sig6) @ self._comp.T))
+        d_eps_p = _k.plastic_increment(de6, sig_out, sig6, self._comp)
         failed = status == STATUS_FAILED
         ok = ~failed
         step_ratio = np.where(failed, np.where(reached > 0, 0.9 * reached, 0.25), 1.0)
