@@ -380,8 +380,9 @@ def register(subparsers) -> None:
     p.set_defaults(func=_replay)
 
     p = subparsers.add_parser("band", help="the band active in each window of axial strain after the peak",
-                              description=__import__("femgran.band", fromlist=["x"]).band_history.__doc__.split("\n\n")[0]
-                              + " Writes RUN_FOLDER/band_history.csv and prints it.")
+                              description="The band active in each window of axial strain after the peak, both arms, "
+                                          "from a run folder's VTK series (femgran.band.band_history). Writes "
+                                          "RUN_FOLDER/band_history.csv and prints it.")
     p.add_argument("run_folder", help="the folder of a biaxial (or triaxial) run with its VTK series")
     p.add_argument("--window", type=float, default=0.005, help="axial strain of each window (default 0.005)")
     p.add_argument("--name", default="biaxial", help="the case's name, of NAME.pvd (default biaxial)")
