@@ -208,7 +208,7 @@ Work = namedtuple("Work", [
     "mvec", "bvec",           # (6, _ROW) flow vector m_a and b_a = d etah_a / d sigma
     "sn", "rn",               # (6, _ROW) Mandel(sym(s (x) n)), Mandel(sym(r (x) n)) of the shear pair (s, r)
     "coef",                   # (7, _ROW) coefficients (rows _C_*)
-    "uvz",                    # (3, _ROW) scratch of the Jacobian's sums
+    "wg",                     # (_ROW,) scratch: w_a / t gamma_a of the gradient's column of S
     "dk", "dk_try", "dk_step", "dk_done",  # (M,) slip increments: iterate, trial, Newton step, last solution
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
@@ -233,7 +233,7 @@ def make_workspace(M):
         raise ValueError("more planes than the kernel's row length _ROW (material._cpa_local)")
     dirs = np.empty((_ND, _ROW))
     return Work(np.empty((_NP, _ROW)), np.empty((_NP, _ROW)), dirs, dirs[_D_M:_D_M + 6], dirs[_D_B:_D_B + 6],
-                dirs[_D_SN:_D_SN + 6], dirs[_D_RN:_D_RN + 6], np.empty((7, _ROW)), np.empty((3, _ROW)),
+                dirs[_D_SN:_D_SN + 6], dirs[_D_RN:_D_RN + 6], np.empty((7, _ROW)), np.empty(_ROW),
                 np.empty(M), np.empty(M), np.empty(M),
                 np.empty(M), np.empty(M), np.empty(M), np.empty(M),
                 np.zeros(M, dtype=np.bool_), np.ones(M, dtype=np.bool_), np.zeros(M), np.zeros(M),
@@ -558,7 +558,7 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
         phi2 += (g_s / A) ** 2
         phimax = max(phimax, abs(g_s) / A)
         if want_jac:  # the column of S in R, and the row of g_S: dS - sum (alpha + cb b . d sigma + gamma dS)
-            wg = ws.uvz[0]
+            wg = ws.wg
             gam = plane[_P_GAMMA]
             for a in range(M):
                 wg[a] = pd.wt[a] * gam[a]
