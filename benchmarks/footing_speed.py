@@ -1,6 +1,6 @@
 """CPA footing against the Drucker-Prager footing on the same mesh: wall time, steps, Newton iterations.
 
-The strip footing of ``femgran.cases.footing`` (rough, B = 1 m, gamma = 18 kN/m^3, no surcharge, to
+The strip footing of ``femgran.cases.footing`` (rough, B = 1 m, gamma = 18 kN/m^3, no surcharge unless asked, to
 s = 0.1 B in 40 nominal steps) on the default mesh, four soils:
 
 * ``drucker-prager``: the plane-strain-matched cone, c = 0, phi = 30 deg, associated (the baseline);
@@ -13,7 +13,7 @@ Each run is timed in this process, after a warm-up that compiles the kernels; th
 Drucker-Prager time is printed (target <= 5). Runs that share the cores disturb each other: run it on an
 idle machine, one numba thread (``NUMBA_NUM_THREADS=1``) for a per-core figure.
 
-    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--soils cpa-isotropic ...]
+    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...]
 """
 
 from __future__ import annotations
@@ -51,13 +51,14 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--stabilisation", type=float, default=0.1, help="mu of cpa-thesis-stabilised")
     ap.add_argument("--soils", nargs="+", default=list(SOILS), choices=SOILS)
+    ap.add_argument("--surcharge", type=float, default=0.0, help="on the surface beside the footing [kPa]")
     args = ap.parse_args(argv)
     footing(_material("cpa-thesis", args.E, 0.0), resolution=1, steps=2, settlement_m=0.002, plots=False)  # compile
     rows = {}
     for soil in args.soils:
         t0 = time.perf_counter()
         sol = footing(_material(soil, args.E, args.stabilisation), resolution=args.resolution, steps=args.steps,
-                      plots=False)
+                      surcharge_kPa=args.surcharge, plots=False)
         wall = time.perf_counter() - t0
         h = sol.history
         its = h["iterations"][1:]
@@ -65,6 +66,10 @@ def main(argv=None) -> None:
         print(f"{soil:<24} {'done' if sol.completed else 'STOPPED':<8} s = {h['settlement_m'][-1]:.4f} m  "
               f"p = {h['pressure_kPa'][-1]:7.1f} kPa  steps {len(h) - 1:4d}  iterations/step {its.mean():5.2f}  "
               f"{wall:7.1f} s", flush=True)
+        log = sol.newton_log.summary()
+        print(f"{'':<24} material evaluations {log['evaluations']}; full Newton steps {log['full_steps']}, "
+              f"{log['full_steps_rejected']} rejected by the line search (half of their overshoot at a median of "
+              f"{log['median_overshoot_points_rejected']:.0f} point(s): femgran.diagnostics.full_step_overshoot)")
         if not sol.completed:
             print(f"{'':<24} {sol.stop_reason}")
     if "drucker-prager" in rows:

@@ -17,7 +17,10 @@ line-search trials included) with
   ``limit_points`` (state key ``limit_points`` > 0: the step went on from a limit point of its branch),
   ``failed_points`` (status FAILED);
 * ``rate``: the estimated order of convergence log(r_k / r_k-1) / log(r_k-1 / r_k-2) of the accepted
-  iterates (2 for quadratic, 1 for linear convergence).
+  iterates (2 for quadratic, 1 for linear convergence);
+* on the rows of full Newton steps (line search s = 1), what made the step miss: ``overshoot``,
+  ``overshoot_points``, ``overshoot_pressure``, ``overshoot_unloading`` (:func:`full_step_overshoot`; NaN
+  on the other rows and for a coupled discretisation).
 
 The rows are kept in memory (:attr:`NewtonLog.rows`, also as :meth:`NewtonLog.table`) and, with a
 path, appended to a CSV file as they come (``newton_log.csv`` in a case's run folder).
@@ -42,13 +45,14 @@ import numpy as np
 
 from material.base import STATUS_FAILED
 
-__all__ = ["NewtonLog", "COLUMNS", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
+__all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
            "uniqueness_report", "cpa_law", "rice_indicator", "ellipticity_summary",
            "ellipticity_report"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
-           "local_iterations_max", "continuation_points", "limit_points", "failed_points", "rate")
+           "local_iterations_max", "continuation_points", "limit_points", "failed_points", "rate",
+           "overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading")
 
 
 DESCRIPTIONS = {
@@ -65,7 +69,60 @@ DESCRIPTIONS = {
     "continuation_points": "points that needed the continuation of the local solver",
     "limit_points": "points whose step passed a limit point of its branch (went on from the limit state)",
     "failed_points": "points that could not be integrated", "rate": "estimated order of convergence",
+    "overshoot": "full Newton step: |force of the stress the tangent did not predict| / |force it predicted|",
+    "overshoot_points": "full Newton step: fewest points holding half of the unpredicted stress (times volume)",
+    "overshoot_pressure": "full Newton step: mean stress of the point with the most unpredicted stress [kPa], "
+                          "compression +",
+    "overshoot_unloading": "full Newton step: loading planes that stopped loading at that point",
 }
+
+
+def full_step_overshoot(disc, free, stress0, tangent0, stress1, direction, loading0=None,
+                        loading1=None) -> dict | None:
+    """Where a full Newton step leaves the tangent's prediction, point by point.
+
+    The Newton direction is computed from the tangent D0 at the iterate; along it each point's stress is
+    predicted as sigma0 + D0 : d_eps, d_eps = ``direction`` (N, 3, 3) the direction's strain. The full
+    step returns sigma1, and the residual at the full step differs from the linear model by the internal
+    force of the unpredicted stress sigma1 - sigma0 - D0 : d_eps. Returns a dict with
+
+    * ``overshoot``: |f(unpredicted)| / |f(predicted)| on the ``free`` DOFs (0 for a linear response; the
+      full step raises the residual when it is about 1 or more, since f(predicted) = -r);
+    * ``share`` (N,): each point's |unpredicted stress| (Frobenius) times its volume, over the sum;
+    * ``overshoot_points``: the fewest points whose shares add up to half (1 or 2: a few points make the
+      step miss; hundreds: the whole body responds nonlinearly; 0 when nothing is missed beyond round-off);
+    * ``overshoot_pressure``: the mean stress -tr(sigma0)/3 of the largest share [kPa];
+    * ``overshoot_unloading``: how many of its loading planes stop loading at the full step (when the
+      law reports ``loading``, (N, planes) bool, at the iterate and at the full step; else NaN).
+
+    None when the tangent is not a plain (N, 3, 3, 3, 3) array (a coupled field's tangent) or the stress
+    did not change. Costs two assemblies of the internal force: no material call.
+    """
+    if not isinstance(tangent0, np.ndarray) or tangent0.ndim != 5 or not hasattr(disc, "dx"):
+        return None
+    predicted = np.einsum("nijkl,nkl->nij", tangent0, direction)
+    missed = np.asarray(stress1) - np.asarray(stress0) - predicted
+    f_pred = np.linalg.norm(disc.internal_force(predicted)[free])
+    if not f_pred > 0.0:
+        return None
+    f_miss = np.linalg.norm(disc.internal_force(missed)[free])
+    dx = np.asarray(disc.dx).ravel()
+    score = np.linalg.norm(missed.reshape(len(missed), 9), axis=1) * dx
+    total = score.sum()
+    if total <= 1e-12 * np.sum(np.linalg.norm(predicted.reshape(len(predicted), 9), axis=1) * dx):
+        total = 0.0  # round-off: the response is linear along the step
+    share = score / total if total > 0 else np.zeros_like(score)
+    top = int(np.argmax(share))
+    ranked = np.sort(share)[::-1]
+    out = {"overshoot": f_miss / f_pred, "share": share,
+           "overshoot_points": int(np.searchsorted(np.cumsum(ranked), 0.5) + 1) if total > 0 else 0,
+           "overshoot_pressure": float(-np.trace(np.asarray(stress0)[top]) / 3.0), "overshoot_unloading": math.nan}
+    if loading0 is not None and loading1 is not None:
+        l0, l1 = np.asarray(loading0, dtype=bool), np.asarray(loading1, dtype=bool)
+        if l0.shape == l1.shape and l0.ndim == 2:
+            out["overshoot_unloading"] = int((l0[top] & ~l1[top]).sum())
+    return out
+
 
 
 def _loading_mask(state, committed) -> np.ndarray | None:
@@ -108,8 +165,10 @@ class NewtonLog:
         self._accepted = []
 
     def record(self, *, step: int, attempt: int, iteration: int, load_factor: float, residual: float,
-               line_search: float, accepted: bool, state: dict, committed: dict | None) -> dict:
-        """Add the row of one material evaluation; ``state`` is the trial state it returned."""
+               line_search: float, accepted: bool, state: dict, committed: dict | None,
+               overshoot: dict | None = None) -> dict:
+        """Add the row of one material evaluation; ``state`` is the trial state it returned; ``overshoot``
+        the :func:`full_step_overshoot` of a full Newton step."""
         mask = _loading_mask(state, committed)
         row = {"step": step, "attempt": attempt, "iteration": iteration, "load_factor": load_factor,
                "residual": residual, "line_search": line_search, "accepted": int(bool(accepted))}
@@ -131,6 +190,8 @@ class NewtonLog:
             else math.nan
         row["failed_points"] = int(np.sum(np.asarray(state["status"]) == STATUS_FAILED))
         row["rate"] = math.nan
+        for c in ("overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading"):
+            row[c] = math.nan if overshoot is None else overshoot[c]
         if accepted:
             self._accepted.append(residual)
             r = self._accepted
@@ -164,6 +225,12 @@ class NewtonLog:
             "max_failed_points": int(np.nanmax(t["failed_points"])),
             "median_rate": float(np.nanmedian(t["rate"])) if np.isfinite(t["rate"]).any() else math.nan,
         }
+        full = np.isfinite(t["overshoot"])
+        missed = full & ~acc
+        out["full_steps"] = int(full.sum())
+        out["full_steps_rejected"] = int(missed.sum())
+        out["median_overshoot_points_rejected"] = float(np.median(t["overshoot_points"][missed])) if missed.any() \
+            else math.nan
         return out
 
 

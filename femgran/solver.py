@@ -511,6 +511,8 @@ class NewtonSolver:
         Raises ``_StepFailure`` (the caller cuts back) when a material point fails, the residual is not
         finite or explodes, or ``max_iter`` iterations do not bring it below ``tol``.
         """
+        from femgran.diagnostics import full_step_overshoot
+
         opt = self.options
         self.log.start_try()
         self.stalled = None
@@ -528,8 +530,14 @@ class NewtonSolver:
                 raise
             rf, ref = self._norms(r, t_new)
             accepted = rf_before is None or rf <= rf_before
+            over = None
+            if s == 1.0 and base is not None:  # a full Newton step: where it left the tangent's prediction
+                stress0, tangent0, loading0, du0 = base
+                over = full_step_overshoot(self.disc, self.free, stress0, tangent0, self.points.trial_stress,
+                                           self.disc.strain(du - du0), loading0, self.points.trial_state.get("loading"))
             self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=rf / ref,
-                            line_search=s, accepted=accepted, state=self.points.trial_state, committed=self.points.state)
+                            line_search=s, accepted=accepted, state=self.points.trial_state, committed=self.points.state,
+                            overshoot=over)
             return r, tangent, rf, ref
 
         du = np.zeros(self.disc.ndofs)
@@ -539,6 +547,7 @@ class NewtonSolver:
             du[self.free] = du_last[self.free] * ((t_new - self.t) / dt_last)
         elif opt.predictor != "none":
             du = self._predict(du, t_new)
+        base = None
         r, tangent, rf, ref = evaluate(du, 0, 0.0)
         residuals = [rf / ref]
         for it in range(1, opt.max_iter + 1):
@@ -549,6 +558,8 @@ class NewtonSolver:
             # inexact Newton (Krylov solvers): forcing term eta_k = min(1e-3, 0.1 |r_k| / ref) keeps the
             # convergence quadratic while sparing GMRES iterations far from the solution
             ddu[self.free] = self._solve_free(K, -r[self.free], min(1e-3, 0.1 * residuals[-1]))
+            # the iterate's stress, tangent and loading planes, and du: the full step's row logs what it missed
+            base = (self.points.trial_stress, tangent, self.points.trial_state.get("loading"), du)
             s, r_new, tangent_new, rf_new, ref_new = self._line_search(evaluate, du, ddu, it, rf)
             du = du + s * ddu
             r, tangent, rf, ref = r_new, tangent_new, rf_new, ref_new

@@ -311,6 +311,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
         ckpt.close()  # every checkpoint on disk before the run returns
     summary = {**case.summarise(sol, problem), **_overstress_summary(newton.points), **localisation}
     sol.extra.update(params=params, **summary)
+    sol.extra["newton_log"] = newton.log  # femgran.diagnostics.NewtonLog of this process's part of the run
     if out_dir is not None:
         from femgran.output import write_parameters
 

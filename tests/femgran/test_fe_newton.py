@@ -423,6 +423,56 @@ def test_newton_log_records_switching_points_and_the_convergence_rate(tmp_path):
     assert log.summary()["accepted_iterations"] == int(t["accepted"].sum())
 
 
+def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_left_the_tangent():
+    """femgran.diagnostics.full_step_overshoot: with the stress the tangent predicts nothing is missed; with
+    one point's stress changed it is that point alone, with its pressure and the planes it unloaded, and the
+    ratio is the force of the missed stress over the force of the predicted one."""
+    from femgran.diagnostics import full_step_overshoot
+
+    d, _ = _plastic_cube()
+    n = d.n_points
+    rng = np.random.default_rng(3)
+    D = material.LinearElastic(1e4, 0.3).update(np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
+                                                 material.LinearElastic(1e4, 0.3).initial_state(n))[2]
+    sig0 = -50.0 * np.eye(3) + rng.normal(0.0, 5.0, (n, 3, 3))
+    sig0 = 0.5 * (sig0 + sig0.transpose(0, 2, 1))
+    deps = rng.normal(0.0, 1e-4, (n, 3, 3))
+    deps = 0.5 * (deps + deps.transpose(0, 2, 1))
+    free = np.arange(d.ndofs)
+    sig1 = sig0 + np.einsum("nijkl,nkl->nij", D, deps)
+    out = full_step_overshoot(d, free, sig0, D, sig1, deps)
+    assert out["overshoot"] < 1e-12 and out["overshoot_points"] == 0 and np.isnan(out["overshoot_unloading"])
+    k = 5
+    bump = np.zeros((n, 3, 3))
+    bump[k] = np.diag([3.0, -1.0, 2.0])
+    loading0, loading1 = np.zeros((n, 4), bool), np.zeros((n, 4), bool)
+    loading0[k, :3] = True
+    loading1[k, 2:] = True  # planes 0 and 1 stop loading, 3 starts
+    out = full_step_overshoot(d, free, sig0, D, sig1 + bump, deps, loading0, loading1)
+    assert out["overshoot_points"] == 1 and out["share"].argmax() == k and out["share"][k] == pytest.approx(1.0)
+    assert out["overshoot_pressure"] == pytest.approx(-np.trace(sig0[k]) / 3.0)
+    assert out["overshoot_unloading"] == 2
+    expect = np.linalg.norm(d.internal_force(bump)) / np.linalg.norm(d.internal_force(sig1 - sig0))
+    assert out["overshoot"] == pytest.approx(expect, rel=1e-12) and 0.0 < expect
+    assert full_step_overshoot(d, free, sig0, object(), sig1, deps) is None  # a coupled tangent: not measured
+
+
+def test_the_newton_log_measures_the_full_steps_only():
+    """Every full Newton step of the plastic cube has its overshoot in the log, the predictor rows have none,
+    and the summary counts them."""
+    from femgran.diagnostics import NewtonLog
+
+    d, bcs = _plastic_cube()
+    log = NewtonLog()
+    assert NewtonSolver(d, material.VonMises(1e4, 0.3, 20.0, 200.0), bcs, log=log).run(2).completed
+    t = log.table()
+    full = (t["line_search"] == 1.0) & (t["iteration"] > 0)
+    assert full.any() and np.isfinite(t["overshoot"][full]).all() and np.isnan(t["overshoot"][t["iteration"] == 0]).all()
+    assert (t["overshoot_points"][full] >= 1).all()
+    summary = log.summary()
+    assert summary["full_steps"] == int(full.sum()) and summary["full_steps_rejected"] == 0
+
+
 def test_history_reads_back_what_it_wrote(tmp_path):
     from femgran.solver import History
 
