@@ -1,0 +1,88 @@
+"""Which Gauss points make a full Newton step of the CPA footing miss, and what they do along it.
+
+Runs the isotropic CPA footing (the Mohr-Coulomb solid of ``footing_speed.py``) and, for the first
+``--probes`` full Newton steps that the line search rejects from step ``--step`` on, prints the overshoot
+of the step (``femgran.diagnostics.full_step_overshoot``: the force of the stress the tangent did not
+predict over the force it predicted) and its worst points: where they are, their mean stress, their
+share of the missed stress (times volume), the stress change the tangent predicted and the one the full
+step gave, and their loading planes at the iterate and at the full step. ``docs/cpa_law.md``, section 4,
+"Which points make a full Newton step miss", quotes it.
+
+    python benchmarks/footing_overshoot.py [--E 6000] [--resolution 2] [--surcharge 0] [--step 1] [--probes 25]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+
+def main(argv=None) -> None:
+    import femgran.solver as solver_module
+    from femgran.cases import footing
+    from femgran.diagnostics import full_step_overshoot
+    from footing_speed import _material  # the same soils as the speed benchmark (this folder is on the path)
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--E", type=float, default=6000.0)
+    ap.add_argument("--resolution", type=int, default=2)
+    ap.add_argument("--surcharge", type=float, default=0.0)
+    ap.add_argument("--step", type=int, default=1, help="probe from this load step on (of 40)")
+    ap.add_argument("--probes", type=int, default=25)
+    ap.add_argument("--worst", type=int, default=4, help="points printed per probe")
+    args = ap.parse_args(argv)
+
+    # wrappers around the solver (this script only): remember the iterate, probe a rejected full step
+    evaluate_of, line_search, step_of = (solver_module.NewtonSolver._evaluate, solver_module.NewtonSolver._line_search,
+                                         solver_module.NewtonSolver.step)
+    where = {"step": 0, "probes": 0}
+
+    def step(self, t_new, *, step=0, attempt=0):
+        where["step"] = step
+        return step_of(self, t_new, step=step, attempt=attempt)
+
+    def evaluate(self, du, t):
+        r, tangent = evaluate_of(self, du, t)
+        where["iterate"] = (du, self.points.trial_stress, tangent, self.points.trial_state.get("loading"))
+        return r, tangent
+
+    def probed(self, evaluate_fn, du, ddu, it, rf):
+        _, stress0, tangent0, loading0 = where["iterate"]
+        out = line_search(self, evaluate_fn, du, ddu, it, rf)
+        if out[0] == 1.0 or where["step"] < args.step or where["probes"] >= args.probes:
+            return out
+        where["probes"] += 1
+        m, P = self.points.material, self.points
+        copy = {k: np.array(v, copy=True) for k, v in P.state.items()}
+        d_eps, direction = self.disc.strain(du), self.disc.strain(ddu)
+        stress1, state1, _ = m.update(d_eps + direction, P.stress, copy)  # the full step, as the line search tried it
+        o = full_step_overshoot(self.disc, self.free, stress0, tangent0, stress1, direction, loading0,
+                                state1.get("loading"))
+        predicted = np.einsum("nijkl,nkl->nij", tangent0, direction)
+        x = self.disc.quadrature_points()
+        print(f"step {where['step']}, iteration {it}: residual {rf:.2e}, full step rejected (overshoot "
+              f"{o['overshoot']:.2f}; half of it at {o['overshoot_points']} point(s)), line search took s = {out[0]:.3g}")
+        for p in np.argsort(-o["share"])[:args.worst]:
+            print(f"  point {p} at ({x[p, 0]:+.3f}, {x[p, 1]:+.3f}) m: mean stress {-np.trace(stress0[p]) / 3:.2f} kPa, "
+                  f"share {o['share'][p]:.2f}, stress change predicted {np.abs(predicted[p]).max():.3f} / full step "
+                  f"{np.abs(stress1[p] - stress0[p]).max():.3f} kPa, loading planes "
+                  f"{int(np.sum(loading0[p]))} -> {int(np.sum(state1['loading'][p]))}")
+        return out
+
+    solver_module.NewtonSolver.step, solver_module.NewtonSolver._evaluate = step, evaluate
+    solver_module.NewtonSolver._line_search = probed
+    try:
+        sol = footing(_material("cpa-isotropic", args.E, 0.0), resolution=args.resolution, steps=40,
+                      surcharge_kPa=args.surcharge, plots=False)
+    finally:
+        solver_module.NewtonSolver.step, solver_module.NewtonSolver._evaluate = step_of, evaluate_of
+        solver_module.NewtonSolver._line_search = line_search
+    log = sol.newton_log.summary()
+    print(f"whole run: {len(sol.history) - 1} steps, {int(sol.history['iterations'][1:].sum())} Newton iterations, "
+          f"{log['evaluations']} material evaluations; {log['full_steps_rejected']} of {log['full_steps']} full steps "
+          f"rejected, half of their overshoot at a median of {log['median_overshoot_points_rejected']:.0f} point(s)")
+
+
+if __name__ == "__main__":
+    main()
