@@ -2,11 +2,11 @@
 
 Runs the isotropic CPA footing (the Mohr-Coulomb solid of ``footing_speed.py``) and, for the first
 ``--probes`` full Newton steps that the line search rejects from step ``--step`` on, prints the overshoot
-of the step (``femgran.diagnostics.full_step_overshoot``: the force of the stress the tangent did not
-predict over the force it predicted) and its worst points: where they are, their mean stress, their
-share of the missed stress (times volume), the stress change the tangent predicted and the one the full
-step gave, and their loading planes at the iterate and at the full step. ``docs/cpa_law.md``, section 4,
-"Which points make a full Newton step miss", quotes it.
+of the step (its residual over the iterate's, the force of the stress the tangent did not predict over
+the force it predicted) and its worst points (``femgran.diagnostics.full_step_overshoot``): where they
+are, their mean stress, their share of the missed stress (times volume), the stress change the tangent
+predicted and the one the full step gave, and their loading planes at the iterate and at the full step.
+``docs/cpa_law.md``, section 4, "Which points make a full Newton step miss", quotes it.
 
     python benchmarks/footing_overshoot.py [--E 6000] [--resolution 2] [--surcharge 0] [--step 1] [--probes 25]
 """
@@ -57,15 +57,17 @@ def main(argv=None) -> None:
         copy = {k: np.array(v, copy=True) for k, v in P.state.items()}
         d_eps, direction = self.disc.strain(du), self.disc.strain(ddu)
         stress1, state1, _ = m.update(d_eps + direction, P.stress, copy)  # the full step, as the line search tried it
-        o = full_step_overshoot(self.disc, self.free, stress0, tangent0, stress1, direction, loading0,
-                                state1.get("loading"))
+        o = full_step_overshoot(self.disc.dx, stress0, tangent0, stress1, direction, loading0, state1.get("loading"))
+        o["overshoot"] = next(r["overshoot"] for r in reversed(self.log.rows)
+                              if r["iteration"] == it and r["line_search"] == 1.0)
         predicted = np.einsum("nijkl,nkl->nij", tangent0, direction)
         x = self.disc.quadrature_points()
-        print(f"step {where['step']}, iteration {it}: residual {rf:.2e}, full step rejected (overshoot "
-              f"{o['overshoot']:.2f}; half of it at {o['overshoot_points']} point(s)), line search took s = {out[0]:.3g}")
+        print(f"step {where['step']}, iteration {it}: |r| {rf:.2e} kN, full step rejected (overshoot "
+              f"{o['overshoot']:.2f}; half of it at {o['overshoot_points']} point(s)), line search took "
+              f"s = {out[0]:.3g}")
         for p in np.argsort(-o["share"])[:args.worst]:
-            print(f"  point {p} at ({x[p, 0]:+.3f}, {x[p, 1]:+.3f}) m: mean stress {-np.trace(stress0[p]) / 3:.2f} kPa, "
-                  f"share {o['share'][p]:.2f}, stress change predicted {np.abs(predicted[p]).max():.3f} / full step "
+            print(f"  point {p} at ({x[p, 0]:+.3f}, {x[p, 1]:+.3f}) m: mean stress "
+                  f"{-np.trace(stress0[p]) / 3:.2f} kPa, share {o['share'][p]:.2f}, stress change predicted {np.abs(predicted[p]).max():.3f} / full step "
                   f"{np.abs(stress1[p] - stress0[p]).max():.3f} kPa, loading planes "
                   f"{int(np.sum(loading0[p]))} -> {int(np.sum(state1['loading'][p]))}")
         return out

@@ -18,9 +18,9 @@ line-search trials included) with
   ``failed_points`` (status FAILED);
 * ``rate``: the estimated order of convergence log(r_k / r_k-1) / log(r_k-1 / r_k-2) of the accepted
   iterates (2 for quadratic, 1 for linear convergence);
-* on the rows of full Newton steps (line search s = 1), what made the step miss: ``overshoot``,
-  ``overshoot_points``, ``overshoot_pressure``, ``overshoot_unloading`` (:func:`full_step_overshoot`; NaN
-  on the other rows and for a coupled discretisation).
+* on the rows of full Newton steps (line search s = 1), what made the step miss: ``overshoot`` (its
+  residual over the iterate's), ``overshoot_points``, ``overshoot_pressure``, ``overshoot_unloading``
+  (:func:`full_step_overshoot`; NaN on the other rows; only ``overshoot`` for a coupled discretisation).
 
 The rows are kept in memory (:attr:`NewtonLog.rows`, also as :meth:`NewtonLog.table`) and, with a
 path, appended to a CSV file as they come (``newton_log.csv`` in a case's run folder).
@@ -45,7 +45,8 @@ import numpy as np
 
 from material.base import STATUS_FAILED
 
-__all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver_kinks_along", "stall_report", "zero_step_drift",
+__all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver_kinks_along", "stall_report",
+           "zero_step_drift",
            "uniqueness_report", "cpa_law", "rice_indicator", "ellipticity_summary",
            "ellipticity_report"]
 
@@ -69,7 +70,8 @@ DESCRIPTIONS = {
     "continuation_points": "points that needed the continuation of the local solver",
     "limit_points": "points whose step passed a limit point of its branch (went on from the limit state)",
     "failed_points": "points that could not be integrated", "rate": "estimated order of convergence",
-    "overshoot": "full Newton step: |force of the stress the tangent did not predict| / |force it predicted|",
+    "overshoot": "full Newton step: |residual| over the iterate's, the force of the stress the tangent did not "
+                 "predict over the force it predicted",
     "overshoot_points": "full Newton step: fewest points holding half of the unpredicted stress (times volume)",
     "overshoot_pressure": "full Newton step: mean stress of the point with the most unpredicted stress [kPa], "
                           "compression +",
@@ -77,17 +79,17 @@ DESCRIPTIONS = {
 }
 
 
-def full_step_overshoot(disc, free, stress0, tangent0, stress1, direction, loading0=None,
+def full_step_overshoot(volume, stress0, tangent0, stress1, direction, loading0=None,
                         loading1=None) -> dict | None:
-    """Where a full Newton step leaves the tangent's prediction, point by point.
+    """Which points make a full Newton step miss the tangent's prediction.
 
     The Newton direction is computed from the tangent D0 at the iterate; along it each point's stress is
-    predicted as sigma0 + D0 : d_eps, d_eps = ``direction`` (N, 3, 3) the direction's strain. The full
-    step returns sigma1, and the residual at the full step differs from the linear model by the internal
-    force of the unpredicted stress sigma1 - sigma0 - D0 : d_eps. Returns a dict with
+    predicted as sigma0 + D0 : d_eps, d_eps = ``direction`` (N, 3, 3) the direction's strain, and the full
+    step returns sigma1. The residual at the full step is the internal force of the unpredicted stress
+    sigma1 - sigma0 - D0 : d_eps (the predicted part cancels the iterate's residual when the linear solve is
+    exact), so |r(full step)| / |r(iterate)| measures the miss (the solver logs it as ``overshoot``) and
+    this function says where it comes from. ``volume`` (N,): the points' integration weights. Returns
 
-    * ``overshoot``: |f(unpredicted)| / |f(predicted)| on the ``free`` DOFs (0 for a linear response; the
-      full step raises the residual when it is about 1 or more, since f(predicted) = -r);
     * ``share`` (N,): each point's |unpredicted stress| (Frobenius) times its volume, over the sum;
     * ``overshoot_points``: the fewest points whose shares add up to half (1 or 2: a few points make the
       step miss; hundreds: the whole body responds nonlinearly; 0 when nothing is missed beyond round-off);
@@ -95,34 +97,29 @@ def full_step_overshoot(disc, free, stress0, tangent0, stress1, direction, loadi
     * ``overshoot_unloading``: how many of its loading planes stop loading at the full step (when the
       law reports ``loading``, (N, planes) bool, at the iterate and at the full step; else NaN).
 
-    None when the tangent is not a plain (N, 3, 3, 3, 3) array (a coupled field's tangent) or the stress
-    did not change. Costs two assemblies of the internal force: no material call.
+    None when the tangent is not a plain (N, 3, 3, 3, 3) array (a coupled field's tangent). No material
+    call and no assembly (about 0.2 ms for 2,430 points).
     """
-    if not isinstance(tangent0, np.ndarray) or tangent0.ndim != 5 or not hasattr(disc, "dx"):
+    if not isinstance(tangent0, np.ndarray) or tangent0.ndim != 5:
         return None
-    predicted = np.einsum("nijkl,nkl->nij", tangent0, direction)
-    missed = np.asarray(stress1) - np.asarray(stress0) - predicted
-    f_pred = np.linalg.norm(disc.internal_force(predicted)[free])
-    if not f_pred > 0.0:
-        return None
-    f_miss = np.linalg.norm(disc.internal_force(missed)[free])
-    dx = np.asarray(disc.dx).ravel()
-    score = np.linalg.norm(missed.reshape(len(missed), 9), axis=1) * dx
+    n = len(tangent0)
+    predicted = np.matmul(tangent0.reshape(n, 9, 9), np.asarray(direction).reshape(n, 9, 1)).reshape(n, 9)
+    missed = np.asarray(stress1).reshape(n, 9) - np.asarray(stress0).reshape(n, 9) - predicted
+    volume = np.asarray(volume).ravel()
+    score = np.linalg.norm(missed, axis=1) * volume
     total = score.sum()
-    if total <= 1e-12 * np.sum(np.linalg.norm(predicted.reshape(len(predicted), 9), axis=1) * dx):
+    if total <= 1e-12 * np.sum(np.linalg.norm(predicted, axis=1) * volume):
         total = 0.0  # round-off: the response is linear along the step
     share = score / total if total > 0 else np.zeros_like(score)
     top = int(np.argmax(share))
-    ranked = np.sort(share)[::-1]
-    out = {"overshoot": f_miss / f_pred, "share": share,
-           "overshoot_points": int(np.searchsorted(np.cumsum(ranked), 0.5) + 1) if total > 0 else 0,
+    out = {"share": share,
+           "overshoot_points": int(np.searchsorted(np.cumsum(np.sort(share)[::-1]), 0.5) + 1) if total > 0 else 0,
            "overshoot_pressure": float(-np.trace(np.asarray(stress0)[top]) / 3.0), "overshoot_unloading": math.nan}
     if loading0 is not None and loading1 is not None:
         l0, l1 = np.asarray(loading0, dtype=bool), np.asarray(loading1, dtype=bool)
         if l0.shape == l1.shape and l0.ndim == 2:
             out["overshoot_unloading"] = int((l0[top] & ~l1[top]).sum())
     return out
-
 
 
 def _loading_mask(state, committed) -> np.ndarray | None:

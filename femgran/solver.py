@@ -532,9 +532,13 @@ class NewtonSolver:
             accepted = rf_before is None or rf <= rf_before
             over = None
             if s == 1.0 and base is not None:  # a full Newton step: where it left the tangent's prediction
-                stress0, tangent0, loading0, du0 = base
-                over = full_step_overshoot(self.disc, self.free, stress0, tangent0, self.points.trial_stress,
-                                           self.disc.strain(du - du0), loading0, self.points.trial_state.get("loading"))
+                stress0, tangent0, loading0, du0, rf0 = base
+                over = {"overshoot_points": np.nan, "overshoot_pressure": np.nan, "overshoot_unloading": np.nan}
+                if isinstance(tangent0, np.ndarray):  # (a coupled field's tangent: the ratio only)
+                    over.update(full_step_overshoot(self.disc.dx, stress0, tangent0, self.points.trial_stress,
+                                                    self.disc.strain(du - du0), loading0,
+                                                    self.points.trial_state.get("loading")) or {})
+                over["overshoot"] = rf / rf0 if rf0 > 0 else np.nan
             self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=rf / ref,
                             line_search=s, accepted=accepted, state=self.points.trial_state, committed=self.points.state,
                             overshoot=over)
@@ -559,7 +563,7 @@ class NewtonSolver:
             # convergence quadratic while sparing GMRES iterations far from the solution
             ddu[self.free] = self._solve_free(K, -r[self.free], min(1e-3, 0.1 * residuals[-1]))
             # the iterate's stress, tangent and loading planes, and du: the full step's row logs what it missed
-            base = (self.points.trial_stress, tangent, self.points.trial_state.get("loading"), du)
+            base = (self.points.trial_stress, tangent, self.points.trial_state.get("loading"), du, rf)
             s, r_new, tangent_new, rf_new, ref_new = self._line_search(evaluate, du, ddu, it, rf)
             du = du + s * ddu
             r, tangent, rf, ref = r_new, tangent_new, rf_new, ref_new

@@ -425,8 +425,7 @@ def test_newton_log_records_switching_points_and_the_convergence_rate(tmp_path):
 
 def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_left_the_tangent():
     """femgran.diagnostics.full_step_overshoot: with the stress the tangent predicts nothing is missed; with
-    one point's stress changed it is that point alone, with its pressure and the planes it unloaded, and the
-    ratio is the force of the missed stress over the force of the predicted one."""
+    one point's stress changed it is that point alone, with its pressure and the planes it unloaded."""
     from femgran.diagnostics import full_step_overshoot
 
     d, _ = _plastic_cube()
@@ -438,37 +437,43 @@ def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_le
     sig0 = 0.5 * (sig0 + sig0.transpose(0, 2, 1))
     deps = rng.normal(0.0, 1e-4, (n, 3, 3))
     deps = 0.5 * (deps + deps.transpose(0, 2, 1))
-    free = np.arange(d.ndofs)
     sig1 = sig0 + np.einsum("nijkl,nkl->nij", D, deps)
-    out = full_step_overshoot(d, free, sig0, D, sig1, deps)
-    assert out["overshoot"] < 1e-12 and out["overshoot_points"] == 0 and np.isnan(out["overshoot_unloading"])
+    out = full_step_overshoot(d.dx, sig0, D, sig1, deps)
+    assert out["overshoot_points"] == 0 and not out["share"].any() and np.isnan(out["overshoot_unloading"])
     k = 5
     bump = np.zeros((n, 3, 3))
     bump[k] = np.diag([3.0, -1.0, 2.0])
+    bump[k + 1] = 0.1 * bump[k]  # a tenth as much at another point of the same volume class
     loading0, loading1 = np.zeros((n, 4), bool), np.zeros((n, 4), bool)
     loading0[k, :3] = True
     loading1[k, 2:] = True  # planes 0 and 1 stop loading, 3 starts
-    out = full_step_overshoot(d, free, sig0, D, sig1 + bump, deps, loading0, loading1)
-    assert out["overshoot_points"] == 1 and out["share"].argmax() == k and out["share"][k] == pytest.approx(1.0)
+    out = full_step_overshoot(d.dx, sig0, D, sig1 + bump, deps, loading0, loading1)
+    v = d.dx.ravel()
+    assert out["overshoot_points"] == 1 and out["share"].argmax() == k
+    assert out["share"][k] == pytest.approx(v[k] / (v[k] + 0.1 * v[k + 1]), rel=1e-9)
     assert out["overshoot_pressure"] == pytest.approx(-np.trace(sig0[k]) / 3.0)
     assert out["overshoot_unloading"] == 2
-    expect = np.linalg.norm(d.internal_force(bump)) / np.linalg.norm(d.internal_force(sig1 - sig0))
-    assert out["overshoot"] == pytest.approx(expect, rel=1e-12) and 0.0 < expect
-    assert full_step_overshoot(d, free, sig0, object(), sig1, deps) is None  # a coupled tangent: not measured
+    assert full_step_overshoot(d.dx, sig0, object(), sig1, deps) is None  # a coupled tangent: not measured
 
 
-def test_the_newton_log_measures_the_full_steps_only():
-    """Every full Newton step of the plastic cube has its overshoot in the log, the predictor rows have none,
-    and the summary counts them."""
+def test_the_newton_log_measures_the_full_steps_by_their_residual_ratio():
+    """Every full Newton step of the plastic cube has its overshoot in the log, the residual of the full
+    step over the iterate's (the force the tangent did not predict over the force it did); the predictor
+    rows have none, and the summary counts them."""
     from femgran.diagnostics import NewtonLog
 
     d, bcs = _plastic_cube()
     log = NewtonLog()
-    assert NewtonSolver(d, material.VonMises(1e4, 0.3, 20.0, 200.0), bcs, log=log).run(2).completed
+    # a reference force above the reaction, so that the logged relative residuals are in one unit
+    options = SolverOptions(force_floor=1e3, tol=1e-12)
+    assert NewtonSolver(d, material.VonMises(1e4, 0.3, 20.0, 200.0), bcs, log=log, options=options).run(2).completed
     t = log.table()
     full = (t["line_search"] == 1.0) & (t["iteration"] > 0)
-    assert full.any() and np.isfinite(t["overshoot"][full]).all() and np.isnan(t["overshoot"][t["iteration"] == 0]).all()
-    assert (t["overshoot_points"][full] >= 1).all()
+    assert full.sum() >= 4 and np.isfinite(t["overshoot"][full]).all()
+    assert np.isnan(t["overshoot"][t["iteration"] == 0]).all()
+    previous = np.flatnonzero(full) - 1  # the iterate each full step started from (no rejected trials here)
+    assert np.allclose(t["overshoot"][full], t["residual"][full] / t["residual"][previous], rtol=1e-12)
+    assert (t["overshoot"][full] < 1.0).all() and (t["overshoot_points"][full] >= 1).all()
     summary = log.summary()
     assert summary["full_steps"] == int(full.sum()) and summary["full_steps_rejected"] == 0
 
