@@ -264,7 +264,8 @@ def _replay(args) -> int:
         seq = " ".join(f"{r:.1e}" for r in log["residual"][kept])
         print(f"  step {step} try {attempt} (load factor {log['load_factor'][rows][0]:.6g}): residuals {seq}; "
               f"most failed points {int(np.nanmax(log['failed_points'][rows]))}, most switching points "
-              f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}")
+              f"{np.nanmax(log['points_switched'][rows]) if np.isfinite(log['points_switched'][rows]).any() else 0:.0f}"
+              f"{_overshoot_note(log, rows)}")
     from femgran.cases.base import build_problem
 
     problem = build_problem(case, material)  # once, for the three reports on the checkpoint
@@ -277,6 +278,20 @@ def _replay(args) -> int:
     write_run_record(dest, args, replayed_from=str(folder), checkpoint_step=info["n_step"],
                      completed=sol.completed, stop_reason=sol.stop_reason, failed_point_files=[p.name for p in replays])
     return 0
+
+
+def _overshoot_note(log, rows) -> str:
+    """What the rejected full Newton steps of one try of a step had in common (Newton log columns
+    ``overshoot_*``, :func:`femgran.diagnostics.full_step_overshoot`); empty for a log without them."""
+    if "overshoot" not in log.columns:
+        return ""
+    missed = rows & np.isfinite(log["overshoot"]) & (log["accepted"] == 0)
+    if not missed.any():
+        return ""
+    pts, p = log["overshoot_points"][missed], log["overshoot_pressure"][missed]
+    return (f"; {int(missed.sum())} full Newton step(s) rejected, half of the missed stress at "
+            f"{np.nanmin(pts):.0f}-{np.nanmax(pts):.0f} point(s), the worst at {np.nanmin(p):.1f}-{np.nanmax(p):.1f} kPa "
+            f"mean stress")
 
 
 def _print_zero_step_drift(problem, checkpoint) -> None:
