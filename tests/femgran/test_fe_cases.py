@@ -106,6 +106,34 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     assert abs(p["cpa_equator"] / p["dp30"] - 1) < 0.03
 
 
+def test_isotropic_cpa_footing_converges_like_drucker_prager_once_a_surcharge_lifts_its_shallow_points():
+    """Why the isotropic CPA footing takes twice Drucker-Prager's Newton iterations (docs/cpa_law.md, section
+    4): a third of its full Newton steps are rejected, and half of what such a step misses sits at a pair of
+    shallow points at a few kPa (corners of planes at failure, almost without shear stiffness in the
+    tangent). A 10 kPa surcharge lifts them, and the same soil converges like the cone. Measured
+    (resolution 2, E = 6 MPa): 7.25 and 3.35 iterations per step; 87 of 286 and 3 of 134 full steps
+    rejected; the worst point's median mean stress 2.7 kPa; Drucker-Prager 3.27 and 3.12."""
+    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
+                                             A=1e-5)
+    from material.factory import plane_strain_axes
+
+    runs = {}
+    for q in (0.0, 10.0):
+        sol = footing(CPAModel(iso, axes=plane_strain_axes(0.0)), 1.0, 18.0, q, True, settlement_m=0.1, steps=40,
+                      resolution=2, plots=False)
+        assert sol.completed and sol.history["residual"].max() <= 1e-8, sol.stop_reason
+        t = sol.newton_log.table()
+        full = np.isfinite(t["overshoot"])
+        missed = full & (t["accepted"] == 0)
+        runs[q] = (sol.history["iterations"][1:].mean(), missed.sum() / full.sum(),
+                   np.median(t["overshoot_points"][missed]), np.median(t["overshoot_pressure"][missed]))
+    print("isotropic CPA footing, surcharge 0 / 10 kPa: iterations per step, rejected full steps, points holding "
+          "half of the overshoot, their mean stress:", runs)
+    assert runs[10.0][0] <= 4.0 and runs[0.0][0] >= 1.5 * runs[10.0][0]
+    assert runs[10.0][1] < 0.05 < 0.2 < runs[0.0][1]
+    assert runs[0.0][2] <= 2 and runs[0.0][3] < 5.0
+
+
 def test_footing_self_weight_and_surcharge_start_in_equilibrium():
     """Elastic layer: the geostatic state with surcharge is in equilibrium, the pressure starts at q_s."""
     sol = footing(material.LinearElastic(2e4, 0.3), 1.0, 18.0, 10.0, True, settlement_m=0.01, steps=2, resolution=1,
