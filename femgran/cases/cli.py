@@ -290,8 +290,8 @@ def _overshoot_note(log, rows) -> str:
         return ""
     pts, p = log["overshoot_points"][missed], log["overshoot_pressure"][missed]
     return (f"; {int(missed.sum())} full Newton step(s) rejected, half of the missed stress at "
-            f"{np.nanmin(pts):.0f}-{np.nanmax(pts):.0f} point(s), the worst at {np.nanmin(p):.1f}-{np.nanmax(p):.1f} kPa "
-            f"mean stress")
+            f"{np.nanmin(pts):.0f}-{np.nanmax(pts):.0f} point(s), the worst at "
+            f"{np.nanmin(p):.1f}-{np.nanmax(p):.1f} kPa mean stress")
 
 
 def _print_zero_step_drift(problem, checkpoint) -> None:
