@@ -46,8 +46,7 @@ import numpy as np
 from material.base import STATUS_FAILED
 
 __all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver_kinks_along", "stall_report",
-           "zero_step_drift",
-           "uniqueness_report", "cpa_law", "rice_indicator", "ellipticity_summary",
+           "zero_step_drift", "uniqueness_report", "cpa_law", "rice_indicator", "ellipticity_summary",
            "ellipticity_report"]
 
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
