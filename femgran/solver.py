@@ -433,6 +433,7 @@ class NewtonSolver:
     def _evaluate(self, du, t):
         """Material update for the trial increment du; residual r (ndofs,), failed mask."""
         de = self.disc.strain(du)
+        self._trial_strain = de  # the full Newton step's row of the log takes its direction's strain from it
         stress, tangent, failed = self.points.evaluate(de, **self._point_inputs(du))
         if failed.any():
             where = getattr(self.points.material, "replay_dir", None)
@@ -532,11 +533,11 @@ class NewtonSolver:
             accepted = rf_before is None or rf <= rf_before
             over = None
             if s == 1.0 and base is not None:  # a full Newton step: where it left the tangent's prediction
-                stress0, tangent0, loading0, du0, rf0 = base
+                stress0, tangent0, loading0, strain0, rf0 = base
                 over = {"overshoot_points": np.nan, "overshoot_pressure": np.nan, "overshoot_unloading": np.nan}
                 if isinstance(tangent0, np.ndarray):  # (a coupled field's tangent: the ratio only)
                     over.update(full_step_overshoot(self.disc.dx, stress0, tangent0, self.points.trial_stress,
-                                                    self.disc.strain(du - du0), loading0,
+                                                    self._trial_strain - strain0, loading0,
                                                     self.points.trial_state.get("loading")) or {})
                 over["overshoot"] = rf / rf0 if rf0 > 0 else np.nan
             self.log.record(step=step, attempt=attempt, iteration=it, load_factor=t_new, residual=rf / ref,
@@ -562,8 +563,8 @@ class NewtonSolver:
             # inexact Newton (Krylov solvers): forcing term eta_k = min(1e-3, 0.1 |r_k| / ref) keeps the
             # convergence quadratic while sparing GMRES iterations far from the solution
             ddu[self.free] = self._solve_free(K, -r[self.free], min(1e-3, 0.1 * residuals[-1]))
-            # the iterate's stress, tangent and loading planes, and du: the full step's row logs what it missed
-            base = (self.points.trial_stress, tangent, self.points.trial_state.get("loading"), du, rf)
+            # the iterate's stress, tangent, loading planes and strain: the full step's row logs what it missed
+            base = (self.points.trial_stress, tangent, self.points.trial_state.get("loading"), self._trial_strain, rf)
             s, r_new, tangent_new, rf_new, ref_new = self._line_search(evaluate, du, ddu, it, rf)
             du = du + s * ddu
             r, tangent, rf, ref = r_new, tangent_new, rf_new, ref_new
