@@ -8,7 +8,7 @@ from material.parameters import CPAParameters, load_parameters, load_preset, sav
 from material import anisotropy, base
 from material.elastic import LinearElastic
 from material.cpa import CPAModel
-from material.plasticity import DruckerPrager, GradientVonMises, VonMises
+from material.plasticity import DruckerPrager, GradientVonMises, MohrCoulomb, VonMises
 from material import driver
 
 __all__ = [
@@ -24,4 +24,5 @@ __all__ = [
     "VonMises",
     "GradientVonMises",
     "DruckerPrager",
+    "MohrCoulomb",
 ]

@@ -8,7 +8,7 @@ What may be given (``spec``):
 * :class:`material.CPAParameters`;
 * a material object (anything with ``initial_state`` and ``update``), used as it is;
 * a mapping, the ``[material]`` table of a case file: ``law`` (``"cpa"``, the default, ``"von_mises"``,
-  ``"drucker_prager"``, ``"linear_elastic"``) and that law's keys (:data:`LAWS`), e.g.
+  ``"drucker_prager"``, ``"mohr_coulomb"``, ``"linear_elastic"``) and that law's keys (:data:`LAWS`), e.g.
   ``{"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0}}``; a ``von_mises`` law with
   ``length_m`` (and optionally ``over_nonlocal``) is the gradient-enhanced :class:`material.GradientVonMises`.
 
@@ -38,6 +38,7 @@ LAWS = {
     "cpa": ("preset", "parameters", "rule", "set", "stabilisation", "regularise", "nonlocal_length", "over_nonlocal"),
     "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa", "length_m", "over_nonlocal"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
+    "mohr_coulomb": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg"),
     "linear_elastic": ("E_kPa", "nu"),
 }
 
@@ -102,7 +103,8 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
                              plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"),
                              regularise=spec.get("regularise"), nonlocal_length=spec.get("nonlocal_length"),
                              over_nonlocal=spec.get("over_nonlocal"))
-    cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "linear_elastic": mlib.LinearElastic}[law]
+    cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "mohr_coulomb": mlib.MohrCoulomb,
+           "linear_elastic": mlib.LinearElastic}[law]
     if law == "von_mises" and ("length_m" in spec or "over_nonlocal" in spec):
         cls = mlib.GradientVonMises  # softening regularised by an implicit gradient of length length_m
     try:

@@ -1,4 +1,4 @@
-"""Reference elastoplastic laws with textbook closed-form answers: von Mises and Drucker-Prager.
+"""Reference elastoplastic laws with textbook closed-form answers: von Mises, Drucker-Prager, Mohr-Coulomb.
 
 Both follow the interface of :mod:`material.base` (strain driven, tension positive, kPa) and exist
 to verify the FE solver (Prandtl's bearing capacity, cavity expansion, ...) before it meets the CPA
@@ -8,7 +8,8 @@ d(sigma_{n+1}) / d(d_strain). Vectorised numpy over the N points (no loop over p
 is closed form, so there is no separate numba kernel.
 
 References: de Souza Neto, Peric & Owen (2008), *Computational Methods for Plasticity*, boxes 7.3-7.4
-(von Mises) and 8.5-8.8 (Drucker-Prager); Simo & Hughes (1998), ch. 3.
+(von Mises), 8.1-8.4 (Mohr-Coulomb) and 8.5-8.8 (Drucker-Prager), appendix A (derivatives of isotropic
+tensor functions); Simo & Hughes (1998), ch. 3.
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from material.base import STATUS_OK, CoupledTangent, State, as_stress_batch, check_batch, check_state
-from material.elastic import _check_elastic, isotropic_stiffness
+from material.elastic import _check_elastic, isotropic_compliance, isotropic_stiffness
 
-__all__ = ["VonMises", "GradientVonMises", "DruckerPrager", "von_mises_stress"]
+__all__ = ["VonMises", "GradientVonMises", "DruckerPrager", "MohrCoulomb", "von_mises_stress"]
 
 _I2 = np.eye(3)
 _II = np.einsum("ij,kl->ijkl", _I2, _I2)  # 1 (x) 1
@@ -432,3 +433,181 @@ class DruckerPrager(_Base):
             d_eq[a] = alpha * dev_v
             tangent[a] = (K * (1.0 - K / (K + alpha * beta * H)) * _II)[None]
         return new_stress, self._new_state(state, de, d_plastic, d_eq), tangent
+
+
+# Mohr-Coulomb planes in principal space (sigma_1 >= sigma_2 >= sigma_3, tension positive): the plane
+# f_ij = (sigma_i - sigma_j) + (sigma_i + sigma_j) sin(phi) - 2 c cos(phi) between the principal stresses i, j
+_MAIN, _EDGE_12, _EDGE_23 = (0, 2), (0, 1), (1, 2)
+
+
+def _mc_normal(pair, sin_angle) -> np.ndarray:
+    """d f_ij / d sigma in principal space, (3,), for the friction (or dilation) angle's sine."""
+    v = np.zeros(3)
+    v[pair[0]] = 1.0 + sin_angle
+    v[pair[1]] = -(1.0 - sin_angle)
+    return v
+
+
+class MohrCoulomb(_Base):
+    """Perfectly plastic Mohr-Coulomb, (sigma_1 - sigma_3) + (sigma_1 + sigma_3) sin phi <= 2 c cos phi, with
+    its edges and apex (multi-surface return in principal stresses).
+
+    The reference law with corners: a microplane CPA law with an isotropic friction ratio eta = tan phi on
+    every plane approaches this surface as the planes become dense, and :class:`DruckerPrager` is its smooth
+    neighbour. On the same mesh the three show what the corners of a criterion cost the global Newton.
+
+    Parameters
+    ----------
+    E_kPa, nu : float
+        Isotropic elasticity [kPa], [-].
+    cohesion_kPa : float
+        Cohesion c [kPa], >= 0.
+    friction_deg : float
+        Friction angle phi [deg], 0 <= phi < 90 (phi = 0 with c > 0: Tresca, which has no apex).
+    dilation_deg : float, optional
+        Dilation angle psi [deg], 0 <= psi <= phi; default psi = phi (associated flow).
+
+    Notes
+    -----
+    Tension positive, sigma_1 >= sigma_2 >= sigma_3 the principal stresses (sigma_3 the most compressive).
+    With the elastic matrix of principal space De = K 1 1^T + 2 G (I - 1 1^T / 3), the normal n_ij and flow
+    direction m_ij (n with psi for phi) of the plane f_ij, and the trial stress sigma* (box 8.1-8.4 of de
+    Souza Neto et al.):
+
+    * main plane f_13: dgamma = f*/(n^T De m), sigma = sigma* - dgamma De m, if the order of the principal
+      stresses survives the return;
+    * otherwise an edge: sigma_1 = sigma_2 (planes f_13 and f_23) if sigma_2 > sigma_1 after the main return,
+      sigma_2 = sigma_3 (f_13 and f_12) if sigma_3 > sigma_2; the two multipliers solve the 2 x 2 system
+      (N^T De M) dgamma = f*;
+    * the apex sigma = c cot(phi) 1 where an edge return gives a negative multiplier or a stress beyond it.
+
+    The consistent tangent is the principal tangent of the active planes, Dp = De - De M (N^T De M)^-1 N^T De
+    (0 at the apex), carried to the full tensor with the spin terms of an isotropic tensor function,
+    (sigma_a - sigma_b)/(eps*_a - eps*_b) for each pair of principal directions (their limit
+    Dp_aa - Dp_ab where the trial stresses coincide). The law is perfectly plastic: ``eq_plastic_strain``
+    accumulates sqrt(2/3 d_eps_p : d_eps_p) for output only.
+    """
+
+    def __init__(self, E_kPa: float, nu: float, cohesion_kPa: float, friction_deg: float,
+                 dilation_deg: float | None = None):
+        self._init_elastic(E_kPa, nu)
+        self.cohesion = _check_nonneg("cohesion_kPa", cohesion_kPa)
+        phi = float(friction_deg)
+        if not (np.isfinite(phi) and 0.0 <= phi < 90.0):
+            raise ValueError(f"friction_deg = {friction_deg!r}: allowed 0 <= friction_deg < 90")
+        psi = phi if dilation_deg is None else float(dilation_deg)
+        if not (np.isfinite(psi) and 0.0 <= psi <= phi):
+            raise ValueError(f"dilation_deg = {dilation_deg!r}: allowed 0 <= dilation_deg <= friction_deg = {phi:g}")
+        if self.cohesion == 0.0 and phi == 0.0:
+            raise ValueError("cohesion_kPa = 0 and friction_deg = 0: the material would have no strength")
+        self.friction_deg, self.dilation_deg = phi, psi
+        self._sphi, self._spsi = np.sin(np.radians(phi)), np.sin(np.radians(psi))
+        self._two_c_cos = 2.0 * self.cohesion * np.cos(np.radians(phi))
+        K, G = self.K, self.G
+        self._De = K * np.ones((3, 3)) + 2.0 * G * (np.eye(3) - np.ones((3, 3)) / 3.0)
+        self._C_inv = isotropic_compliance(self.E, self.nu)
+
+    def __repr__(self) -> str:
+        return (f"MohrCoulomb(E_kPa={self.E:g}, nu={self.nu:g}, cohesion_kPa={self.cohesion:g}, "
+                f"friction_deg={self.friction_deg:g}, dilation_deg={self.dilation_deg:g})")
+
+    @property
+    def apex_stress(self) -> float:
+        """c cot(phi): the mean stress of the apex [kPa] (tension positive; inf for phi = 0)."""
+        return self.cohesion / np.tan(np.radians(self.friction_deg)) if self.friction_deg > 0.0 else np.inf
+
+    def yield_function(self, stress: np.ndarray, eq_plastic_strain=None) -> np.ndarray:
+        """f = (sigma_1 - sigma_3) + (sigma_1 + sigma_3) sin phi - 2 c cos phi [kPa], (N,)."""
+        sig = np.linalg.eigvalsh(np.asarray(stress, dtype=float))
+        return (sig[..., 2] - sig[..., 0]) + (sig[..., 2] + sig[..., 0]) * self._sphi - self._two_c_cos
+
+    def _f(self, pair, sig):
+        return sig[:, pair[0]] - sig[:, pair[1]] + (sig[:, pair[0]] + sig[:, pair[1]]) * self._sphi - self._two_c_cos
+
+    def _return_edge(self, trial_p, edge):
+        """Principal stresses, multipliers (n, 2) and principal tangent (n, 3, 3) of the return to the edge
+        of the main plane and ``edge``."""
+        De = self._De
+        N = np.stack([_mc_normal(_MAIN, self._sphi), _mc_normal(edge, self._sphi)], axis=1)  # (3, 2)
+        M = np.stack([_mc_normal(_MAIN, self._spsi), _mc_normal(edge, self._spsi)], axis=1)
+        A = N.T @ De @ M
+        f = np.stack([self._f(_MAIN, trial_p), self._f(edge, trial_p)], axis=1)
+        dgamma = f @ np.linalg.inv(A).T
+        sig = trial_p - dgamma @ (De @ M).T
+        Dp = De - De @ M @ np.linalg.solve(A, N.T @ De)
+        return sig, dgamma, Dp
+
+    def _principal_return(self, trial_p):
+        """Principal stresses (n, 3) after the return, the principal tangent (n, 3, 3) and the plastic points
+        (n,), of the principal trial stresses in descending order (n, 3)."""
+        n = trial_p.shape[0]
+        De, tol = self._De, 1e-12
+        scale = np.abs(trial_p).max(axis=1) + self._two_c_cos + 1e-300
+        sig = trial_p.copy()
+        Dp = np.broadcast_to(De, (n, 3, 3)).copy()
+        plastic = self._f(_MAIN, trial_p) > tol * scale
+        if not plastic.any():
+            return sig, Dp, plastic
+        n_main, m_main = _mc_normal(_MAIN, self._sphi), _mc_normal(_MAIN, self._spsi)
+        a = n_main @ De @ m_main
+        dgamma = np.where(plastic, self._f(_MAIN, trial_p) / a, 0.0)
+        main = trial_p - dgamma[:, None] * (De @ m_main)[None]
+        ordered = (main[:, 0] >= main[:, 1] - tol * scale) & (main[:, 1] >= main[:, 2] - tol * scale)
+        on_main = plastic & ordered
+        sig[on_main] = main[on_main]
+        Dp[on_main] = De - np.outer(De @ m_main, n_main @ De) / a
+        apex = np.zeros(n, dtype=bool)
+        above = main[:, 1] > main[:, 0]  # sigma_2 above sigma_1 after the return: the edge sigma_1 = sigma_2
+        for edge, wrong in ((_EDGE_23, above), (_EDGE_12, ~above)):  # else sigma_3 above sigma_2
+            take = plastic & ~ordered & wrong
+            if not take.any():
+                continue
+            s_e, g_e, Dp_e = self._return_edge(trial_p[take], edge)
+            beyond = (g_e < -tol).any(axis=1) | (s_e.mean(axis=1) > self.apex_stress)
+            idx = np.flatnonzero(take)
+            ok = idx[~beyond]
+            sig[ok] = s_e[~beyond]
+            Dp[ok] = Dp_e
+            apex[idx[beyond]] = True
+        if apex.any():
+            if not np.isfinite(self.apex_stress):  # Tresca has no apex: an edge return always exists
+                raise RuntimeError("Mohr-Coulomb return: no admissible edge with phi = 0 (please report)")
+            sig[apex] = self.apex_stress
+            Dp[apex] = 0.0
+        return sig, Dp, plastic
+
+    def update(self, d_strain, stress, state: State):
+        """(N,3,3) strain increment and stress (tension +) -> stress, new state, tangent (N,3,3,3,3)."""
+        de, trial, n = self._trial(d_strain, stress, state)
+        w, V = np.linalg.eigh(trial)  # ascending: w[:, 0] the most compressive
+        # principal space in descending order, as the docstring writes it: sigma_1 = w[:, 2]
+        trial_p = w[:, ::-1]
+        V = V[:, :, ::-1]
+        sig_p, Dp, plastic = self._principal_return(trial_p)
+        new_stress = trial.copy()
+        d_plastic = np.zeros_like(trial)
+        tangent = np.broadcast_to(self.stiffness, (n, 3, 3, 3, 3)).copy()
+        if plastic.any():
+            p = plastic
+            new_stress[p] = np.einsum("nia,na,nja->nij", V[p], sig_p[p], V[p])
+            d_plastic[p] = np.einsum("ijkl,nkl->nij", self._C_inv, trial[p] - new_stress[p])
+            tangent[p] = self._tangent(V[p], trial_p[p], sig_p[p], Dp[p])
+        d_eq = np.sqrt(2.0 / 3.0 * np.einsum("nij,nij->n", d_plastic, d_plastic))
+        return new_stress, self._new_state(state, de, d_plastic, d_eq), tangent
+
+    def _tangent(self, V, trial_p, sig_p, Dp) -> np.ndarray:
+        """d sigma / d eps (N,3,3,3,3) of the isotropic tensor function from its principal parts."""
+        e = [V[:, :, a] for a in range(3)]  # (n, 3) principal directions
+        D = np.einsum("nab,nia,nja,nkb,nlb->nijkl", Dp, V, V, V, V)
+        scale = np.abs(trial_p).max(axis=1) + 1e-300
+        for a in range(3):
+            for b in range(3):
+                if a == b:
+                    continue
+                gap = trial_p[:, a] - trial_p[:, b]
+                close = np.abs(gap) <= 1e-9 * scale
+                theta = np.where(close, Dp[:, a, a] - Dp[:, a, b],
+                                 2.0 * self.G * (sig_p[:, a] - sig_p[:, b]) / np.where(close, 1.0, gap))
+                Eab = 0.5 * (np.einsum("ni,nj->nij", e[a], e[b]) + np.einsum("ni,nj->nij", e[b], e[a]))
+                D += theta[:, None, None, None, None] * np.einsum("nij,nk,nl->nijkl", Eab, e[a], e[b])
+        return 0.5 * (D + D.transpose(0, 1, 2, 4, 3))

@@ -8,7 +8,7 @@ Format (four tables, each checked against the dataclass it fills)::
     alpha_deg = 30.0
 
     [material]                    # optional; default: CPA ottawa_c109 with axes from alpha_deg
-    law = "cpa"                   # cpa | von_mises | drucker_prager | linear_elastic
+    law = "cpa"                   # cpa | von_mises | drucker_prager | mohr_coulomb | linear_elastic
     preset = "ottawa_c109"        # cpa: a preset name, or parameters = "my_sand.toml"
     rule = "bazant-oh-33"         # cpa: integration rule of the planes
     set = { beta = 5.0 }          # cpa: parameters to change (CPAParameters.replace)
@@ -16,6 +16,7 @@ Format (four tables, each checked against the dataclass it fills)::
     nonlocal_length = 0.006       # cpa with softening: the implicit gradient's length l [m] (not the crack band)
     # von_mises: E_kPa, nu, yield_stress_kPa, hardening_kPa (and length_m, over_nonlocal: the gradient law)
     # drucker_prager: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg, match, hardening_kPa
+    # mohr_coulomb: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg
     # linear_elastic: E_kPa, nu
 
     [solver]                      # optional: femgran.solver.SolverOptions fields

@@ -9,6 +9,7 @@ Examples::
     femgran triaxial --alpha 0 45 90 --platens rough            # -> out/triaxial/alpha_0 ... + comparison
     femgran footing --alpha 0 30 60 90 --surcharge 10           # bearing capacity vs bedding angle
     femgran footing --law von_mises --E 30000 --yield-stress 173.2 --unit-weight 0   # Prandtl check
+    femgran footing --law mohr_coulomb --E 6000 --cohesion 0 --friction 30          # N_gamma, Mohr-Coulomb
     femgran biaxial --resolution 8 16 32                        # three meshes on one plot
     femgran cavity --law von_mises --E 1e5 --yield-stress 173.2 # Hill's cylinder
     femgran run case.toml --max-iter 40                         # a case file (femgran.cases.casefile)
@@ -48,8 +49,8 @@ def _material(args) -> dict:
             spec["rule"] = args.rule
     elif args.law == "von_mises":
         spec = {"law": "von_mises", "E_kPa": args.E, "nu": args.nu, "yield_stress_kPa": args.yield_stress}
-    elif args.law == "drucker_prager":
-        spec = {"law": "drucker_prager", "E_kPa": args.E, "nu": args.nu, "cohesion_kPa": args.cohesion,
+    elif args.law in ("drucker_prager", "mohr_coulomb"):
+        spec = {"law": args.law, "E_kPa": args.E, "nu": args.nu, "cohesion_kPa": args.cohesion,
                 "friction_deg": args.friction_deg}
     else:
         spec = {"law": "linear_elastic", "E_kPa": args.E, "nu": args.nu}
@@ -70,7 +71,8 @@ def _stabilisation(text: str):
 
 def _material_flags(p):
     g = p.add_argument_group("material")
-    g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "linear_elastic"], default="cpa")
+    g.add_argument("--law", choices=["cpa", "von_mises", "drucker_prager", "mohr_coulomb", "linear_elastic"],
+                   default="cpa")
     add_parameters(g)
     g.add_argument("--stabilisation", type=_stabilisation, default=0.0, metavar="MU",
                    help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
@@ -87,9 +89,9 @@ def _material_flags(p):
     g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
     g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")
-    g.add_argument("--cohesion", type=float, default=1.0, help="Drucker-Prager cohesion [kPa]")
+    g.add_argument("--cohesion", type=float, default=1.0, help="Drucker-Prager / Mohr-Coulomb cohesion [kPa]")
     g.add_argument("--friction", dest="friction_deg", type=float, default=35.0,
-                   help="Drucker-Prager friction angle [deg]")
+                   help="Drucker-Prager / Mohr-Coulomb friction angle [deg]")
 
 
 def _solver_flags(p):

@@ -134,6 +134,35 @@ def test_isotropic_cpa_footing_converges_like_drucker_prager_once_a_surcharge_li
     assert runs[0.0][2] <= 2 and runs[0.0][3] < 5.0
 
 
+def test_mohr_coulomb_corners_cost_the_footing_nothing_and_sharp_plane_hardening_costs_the_cpa_law():
+    """What makes the isotropic CPA footing slow, against two references on the same mesh (resolution 2,
+    E = 6 MPa, c = 0, phi = 30 deg; docs/cpa_law.md, section 4): Mohr-Coulomb, with its edges and apex,
+    converges like the smooth Drucker-Prager cone, so the corners of the criterion cost nothing. The CPA law,
+    whose limit surface is the envelope of 33 planes, converges like them while its planes harden slowly
+    and slows down as the hardening slip A shrinks toward rigid-plastic planes. Measured: Drucker-Prager
+    3.27 iterations per step (201.7 kPa at 0.1 B), Mohr-Coulomb 3.50 (209.7 kPa; 3 of 140 full steps
+    rejected); CPA with A = 1e-3 / 1e-4 / 1e-5 m 3.67 / 4.95 / 7.25 (87 of 286 full steps rejected at 1e-5)."""
+    from material.factory import plane_strain_axes
+
+    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0)
+    laws = {"dp": material.DruckerPrager(6000.0, 0.3, 0.0, 30.0), "mc": material.MohrCoulomb(6000.0, 0.3, 0.0, 30.0),
+            "cpa_A1e-3": CPAModel(iso.replace(A=1e-3), axes=plane_strain_axes(0.0)),
+            "cpa_A1e-5": CPAModel(iso.replace(A=1e-5), axes=plane_strain_axes(0.0))}
+    its, p, rejected = {}, {}, {}
+    for name, mat in laws.items():
+        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=2, plots=False)
+        assert sol.completed and sol.history["residual"].max() <= 1e-8, (name, sol.stop_reason)
+        t = sol.newton_log.table()
+        full = np.isfinite(t["overshoot"])
+        its[name] = sol.history["iterations"][1:].mean()
+        p[name] = sol.history["pressure_kPa"][-1]
+        rejected[name] = np.count_nonzero(full & (t["accepted"] == 0)) / np.count_nonzero(full)
+    print("footing, resolution 2: iterations per step", its, "p(0.1 B)", p, "rejected full steps", rejected)
+    assert its["mc"] <= 4.0 and its["mc"] <= its["dp"] + 0.5 and rejected["mc"] < 0.05
+    assert abs(p["mc"] / p["dp"] - 1.0) < 0.06  # the plane-strain cone is built for Mohr-Coulomb's collapse loads
+    assert its["cpa_A1e-3"] <= 4.0 and its["cpa_A1e-5"] >= 1.7 * its["mc"] and rejected["cpa_A1e-5"] > 0.2
+
+
 def test_footing_self_weight_and_surcharge_start_in_equilibrium():
     """Elastic layer: the geostatic state with surcharge is in equilibrium, the pressure starts at q_s."""
     sol = footing(material.LinearElastic(2e4, 0.3), 1.0, 18.0, 10.0, True, settlement_m=0.01, steps=2, resolution=1,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from material import CPAModel, DruckerPrager, driver, load_preset, save_parameters
+from material import CPAModel, DruckerPrager, MohrCoulomb, driver, load_preset, save_parameters
 from material.anisotropy import axes_from_alpha
 from material.factory import make_material, plane_strain_axes
 
@@ -70,5 +70,10 @@ def test_a_mapping_is_the_material_table_of_a_case_file(tmp_path):
     np.testing.assert_allclose(model.axes[:, 1], plane_strain_axes(30.0)[:, 1])
     dp = make_material({"law": "drucker_prager", "E_kPa": 3e4, "nu": 0.3, "cohesion_kPa": 1.0, "friction_deg": 30.0})
     assert isinstance(dp, DruckerPrager)
+    mc = make_material({"law": "mohr_coulomb", "E_kPa": 6e3, "nu": 0.3, "cohesion_kPa": 0.0, "friction_deg": 30.0,
+                        "dilation_deg": 10.0})
+    assert isinstance(mc, MohrCoulomb) and (mc.friction_deg, mc.dilation_deg) == (30.0, 10.0)
+    with pytest.raises(ValueError, match=r"\(law 'mohr_coulomb'\): unknown key\(s\) \['match'\]; allowed"):
+        make_material({"law": "mohr_coulomb", "match": "plane_strain"})
     with pytest.raises(ValueError, match=r"\(law 'von_mises'\): unknown key\(s\) \['phi'\]; allowed"):
         make_material({"law": "von_mises", "phi": 3})

@@ -1,9 +1,10 @@
-"""Reference laws VonMises and DruckerPrager: closed forms, consistency, consistent tangent by finite differences."""
+"""Reference laws VonMises, DruckerPrager and MohrCoulomb: closed forms, consistency, consistent tangent by finite
+differences."""
 
 import numpy as np
 import pytest
 
-from material.plasticity import DruckerPrager, VonMises, von_mises_stress
+from material.plasticity import DruckerPrager, MohrCoulomb, VonMises, von_mises_stress
 
 E, NU = 20000.0, 0.3
 G = E / (2 * (1 + NU))
@@ -317,3 +318,111 @@ def test_von_mises_softening_is_linear_then_floored_at_zero_with_a_consistent_ta
         e[0, k, l] = e[0, l, k] = h
         fd = (law.update(de + e, sig2, st2)[0] - law.update(de - e, sig2, st2)[0]) / (2 * h)
         np.testing.assert_allclose(np.einsum("nijkl,nkl->nij", D, e) / h, fd, rtol=1e-6, atol=1e-3)
+
+
+# ----------------------------------------------------------------------------- Mohr-Coulomb
+def _mc_branches(model, stress):
+    """Which return each point took, from its principal stresses: 'apex', 'edge' (two equal, not the apex) or
+    'plane' (all distinct), and the principal stresses (descending)."""
+    sig = np.linalg.eigvalsh(stress)[:, ::-1]
+    scale = np.abs(sig).max(axis=1) + 1.0
+    apex = np.abs(sig - model.apex_stress).max(axis=1) <= 1e-9 * scale
+    edge = ~apex & ((sig[:, 0] - sig[:, 1] <= 1e-9 * scale) | (sig[:, 1] - sig[:, 2] <= 1e-9 * scale))
+    return np.where(apex, "apex", np.where(edge, "edge", "plane")), sig
+
+
+@pytest.mark.parametrize("extension", [False, True])
+def test_mohr_coulomb_triaxial_strengths_are_the_closed_forms(extension):
+    """Drained triaxial compression ends on the edge sigma_1 = sigma_2, extension on sigma_2 = sigma_3, at
+    q_f = 2 (c cos phi + p0 sin phi) / (1 -+ sin phi): the two meridians that Drucker-Prager matches one at a time."""
+    c, phi, p0 = 5.0, 30.0, 100.0
+    m = MohrCoulomb(E, NU, c, phi)
+    st = m.initial_state(1)
+    s = -p0 * np.eye(3)[None]
+    for _ in range(60):  # axisymmetric: on an edge the split of the lateral strains between x and y is free
+        de = np.diag([0.0, 0.0, 2e-4 if extension else -2e-4])[None]
+        for _ in range(30):
+            s1, st1, tan = m.update(de, s, st)
+            r = 0.5 * (s1[0, 0, 0] + s1[0, 1, 1]) + p0
+            if abs(r) < 1e-10 * p0:
+                break
+            slope = 0.5 * (tan[0, 0, 0, 0, 0] + tan[0, 0, 0, 1, 1] + tan[0, 1, 1, 0, 0] + tan[0, 1, 1, 1, 1])
+            de = de - r / slope * np.diag([1.0, 1.0, 0.0])[None]
+        s, st = s1, st1
+    q = abs(s[0, 0, 0] - s[0, 2, 2])
+    sphi = np.sin(np.deg2rad(phi))
+    q_exact = 2 * (c * np.cos(np.deg2rad(phi)) + p0 * sphi) / ((1 + sphi) if extension else (1 - sphi))
+    assert q == pytest.approx(q_exact, rel=1e-9)
+    assert _mc_branches(m, s)[0][0] == "edge"
+    assert st["eq_plastic_strain"][0] > 0
+    if not extension:  # the outer Drucker-Prager cone goes through the same compression strength
+        dp = DruckerPrager(E, NU, c, phi, match="compression")
+        assert dp.yield_function(s, np.zeros(1))[0] == pytest.approx(0.0, abs=1e-8 * p0)
+
+
+def test_mohr_coulomb_plane_strain_limit_is_the_plane_strain_drucker_prager_limit():
+    """Plane strain with associated flow: Mohr-Coulomb and the plane-strain-matched cone reach the same limit
+    state (the match is built for it), with the out-of-plane stress strictly between the other two."""
+    c, phi, p0 = 10.0, 25.0, 50.0
+    limits = []
+    for m in (MohrCoulomb(E, NU, c, phi), DruckerPrager(E, NU, c, phi, match="plane_strain")):
+        st = m.initial_state(1)
+        s = -p0 * np.eye(3)[None]
+        for _ in range(200):  # z compressed, x at constant stress -p0, y (out of plane) at zero strain
+            de = np.zeros((1, 3, 3))
+            de[0, 2, 2] = -2e-4
+            for _ in range(30):
+                s1, st1, tan = m.update(de, s, st)
+                r = s1[0, 0, 0] + p0
+                if abs(r) < 1e-9 * p0:
+                    break
+                de[0, 0, 0] -= r / tan[0, 0, 0, 0, 0]
+            s, st = s1, st1
+        limits.append(s[0].copy())
+    mc, dp = limits
+    assert mc[2, 2] == pytest.approx(dp[2, 2], rel=1e-6)  # the major stress at the limit
+    assert -mc[0, 0] < -mc[1, 1] < -mc[2, 2]
+    assert _mc_branches(MohrCoulomb(E, NU, c, phi), mc[None])[0][0] == "plane"
+
+
+@pytest.mark.parametrize("c, psi", [(0.0, None), (10.0, None), (10.0, 10.0), (0.0, 0.0)])
+def test_mohr_coulomb_returns_onto_its_planes_edges_and_apex_with_the_consistent_tangent(c, psi):
+    """Random strain steps from a confined state reach every branch of the return; each ends on the surface
+    (and no stress beyond the apex), the plastic strain is the total minus the elastic one, and the tangent is
+    the central difference of the update on every branch (non-symmetric only for non-associated flow)."""
+    m = MohrCoulomb(E, NU, c, 30.0, dilation_deg=psi)
+    n = 400
+    s0 = -60.0 * np.eye(3) + _random_steps(n, 8.0, 21)
+    de = _random_steps(n, 4e-3, 22) + np.eye(3) * np.random.default_rng(23).uniform(-2e-3, 3e-3, n)[:, None, None]
+    st = m.initial_state(n)
+    s1, st1, tan = m.update(de, s0, st)
+    kind, sig = _mc_branches(m, s1)
+    plastic = st1["eq_plastic_strain"] > 0
+    for branch in ("plane", "edge", "apex"):
+        assert np.count_nonzero(plastic & (kind == branch)) >= 5, branch
+    scale = np.abs(sig).max(axis=1) + c + 1.0
+    f = m.yield_function(s1)
+    assert np.all(f <= 1e-10 * scale)
+    assert np.all(np.abs(f[plastic]) <= 1e-10 * scale[plastic])
+    assert np.all(sig.mean(axis=1) <= m.apex_stress + 1e-10 * scale)
+    eps_e = (1 + NU) / E * (s1 - s0) - NU / E * np.trace(s1 - s0, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+    assert np.allclose(st1["plastic_strain"], de - eps_e, atol=1e-13)
+    not_apex = kind != "apex"
+    _check_tangent(m, de[not_apex], s0[not_apex], {k: v[not_apex] for k, v in st.items()})
+    assert np.abs(tan[kind == "apex"]).max() == 0.0  # perfectly plastic apex: no stiffness left
+    on_plane = plastic & (kind == "plane")
+    sym = np.allclose(tan[on_plane], np.transpose(tan[on_plane], (0, 3, 4, 1, 2)), atol=1e-8 * np.abs(tan).max())
+    assert sym == (psi is None)
+
+
+def test_mohr_coulomb_bad_input():
+    with pytest.raises(ValueError, match="friction_deg"):
+        MohrCoulomb(E, NU, 1.0, 90.0)
+    with pytest.raises(ValueError, match="dilation_deg"):
+        MohrCoulomb(E, NU, 1.0, 30.0, dilation_deg=35.0)
+    with pytest.raises(ValueError, match="cohesion_kPa"):
+        MohrCoulomb(E, NU, -1.0, 30.0)
+    with pytest.raises(ValueError, match="no strength"):
+        MohrCoulomb(E, NU, 0.0, 0.0)
+    with pytest.raises(ValueError, match="nu"):
+        MohrCoulomb(E, 0.5, 1.0, 30.0)
