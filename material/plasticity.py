@@ -486,6 +486,11 @@ class MohrCoulomb(_Base):
     (sigma_a - sigma_b)/(eps*_a - eps*_b) for each pair of principal directions (their limit
     Dp_aa - Dp_ab where the trial stresses coincide). The law is perfectly plastic: ``eq_plastic_strain``
     accumulates sqrt(2/3 d_eps_p : d_eps_p) for output only.
+
+    At an edge the plastic flow is any non-negative combination of its two planes' flows. A single point whose
+    two lateral stresses are both prescribed (the triaxial element test of :func:`material.driver.triaxial`)
+    therefore has no unique lateral strains at its limit: the driver reaches the limit (q_f exactly) and stops
+    there with "singular system". In a body, or with an axisymmetric constraint, the path goes on.
     """
 
     def __init__(self, E_kPa: float, nu: float, cohesion_kPa: float, friction_deg: float,
