@@ -163,6 +163,29 @@ def test_mohr_coulomb_corners_cost_the_footing_nothing_and_sharp_plane_hardening
     assert its["cpa_A1e-3"] <= 4.0 and its["cpa_A1e-5"] >= 1.7 * its["mc"] and rejected["cpa_A1e-5"] > 0.2
 
 
+@pytest.mark.slow
+def test_mohr_coulomb_footing_n_gamma_falls_with_the_mesh_and_matches_the_plane_strain_cone():
+    """The footing on the law for which the characteristics' N_gamma (14.75 for phi = 30 deg, rough; Martin
+    2005) is exact: on resolutions 2, 3, 5 (E = 60 MPa, where the curves reach their limit by 0.1 B) N_gamma
+    falls with the mesh, within 1 % of the plane-strain-matched cone on each mesh, in at most 5 Newton
+    iterations per step. Measured: 26.9 / 23.3 / 20.2 against the cone's 26.8 / 23.2 / 20.2; 3.8 / 4.1 / 4.6
+    iterations per step."""
+    n_gamma, its = {}, {}
+    for name, mat in (("mc", material.MohrCoulomb(60000.0, 0.3, 0.0, 30.0)),
+                      ("dp", material.DruckerPrager(60000.0, 0.3, 0.0, 30.0))):
+        for res in (2, 3, 5):
+            sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=res, plots=False)
+            assert sol.completed and sol.history["residual"].max() <= 1e-8, (name, res, sol.stop_reason)
+            n_gamma[name, res] = 2.0 * sol.history["pressure_kPa"][-1] / 18.0
+            its[name, res] = sol.history["iterations"][1:].mean()
+    print("N_gamma at 0.1 B:", n_gamma, "iterations per step:", its)
+    for name in ("mc", "dp"):
+        assert n_gamma[name, 2] > n_gamma[name, 3] > n_gamma[name, 5] > 14.75
+    for res in (2, 3, 5):
+        assert abs(n_gamma["mc", res] / n_gamma["dp", res] - 1.0) < 0.01
+        assert its["mc", res] <= 5.0
+
+
 def test_footing_self_weight_and_surcharge_start_in_equilibrium():
     """Elastic layer: the geostatic state with surcharge is in equilibrium, the pressure starts at q_s."""
     sol = footing(material.LinearElastic(2e4, 0.3), 1.0, 18.0, 10.0, True, settlement_m=0.01, steps=2, resolution=1,
