@@ -284,6 +284,21 @@ class GradientVonMises(VonMises):
         kappa = new_state["eq_plastic_strain"]
         return new_stress, new_state, CoupledTangent(tangent, ds_de, kappa, dk_deps, dk_de)
 
+def _frictional(cohesion_kPa, friction_deg, dilation_deg) -> tuple[float, float, float]:
+    """Validated (c, phi, psi) of a Mohr-Coulomb-type law: c >= 0, 0 <= phi < 90, 0 <= psi <= phi (default
+    phi), and some strength (c > 0 or phi > 0)."""
+    c = _check_nonneg("cohesion_kPa", cohesion_kPa)
+    phi = float(friction_deg)
+    if not (np.isfinite(phi) and 0.0 <= phi < 90.0):
+        raise ValueError(f"friction_deg = {friction_deg!r}: allowed 0 <= friction_deg < 90")
+    psi = phi if dilation_deg is None else float(dilation_deg)
+    if not (np.isfinite(psi) and 0.0 <= psi <= phi):
+        raise ValueError(f"dilation_deg = {dilation_deg!r}: allowed 0 <= dilation_deg <= friction_deg = {phi:g}")
+    if c == 0.0 and phi == 0.0:
+        raise ValueError("cohesion_kPa = 0 and friction_deg = 0: the material would have no strength")
+    return c, phi, psi
+
+
 _MATCH = ("compression", "extension", "plane_strain")
 
 
@@ -344,17 +359,9 @@ class DruckerPrager(_Base):
         hardening_kPa: float = 0.0,
     ):
         self._init_elastic(E_kPa, nu)
-        self.cohesion = _check_nonneg("cohesion_kPa", cohesion_kPa)
-        phi = float(friction_deg)
-        if not (np.isfinite(phi) and 0.0 <= phi < 90.0):
-            raise ValueError(f"friction_deg = {friction_deg!r}: allowed 0 <= friction_deg < 90")
-        psi = phi if dilation_deg is None else float(dilation_deg)
-        if not (np.isfinite(psi) and 0.0 <= psi <= phi):
-            raise ValueError(f"dilation_deg = {dilation_deg!r}: allowed 0 <= dilation_deg <= friction_deg = {phi:g}")
+        self.cohesion, phi, psi = _frictional(cohesion_kPa, friction_deg, dilation_deg)
         if match not in _MATCH:
             raise ValueError(f"match = {match!r}: allowed {list(_MATCH)}")
-        if self.cohesion == 0.0 and phi == 0.0:
-            raise ValueError("cohesion_kPa = 0 and friction_deg = 0: the material would have no strength")
         self.friction_deg, self.dilation_deg, self.match = phi, psi, match
         self.hardening = _check_nonneg("hardening_kPa", hardening_kPa)
         self.eta, self.xi = _dp_coefficients(phi, match)
@@ -496,15 +503,7 @@ class MohrCoulomb(_Base):
     def __init__(self, E_kPa: float, nu: float, cohesion_kPa: float, friction_deg: float,
                  dilation_deg: float | None = None):
         self._init_elastic(E_kPa, nu)
-        self.cohesion = _check_nonneg("cohesion_kPa", cohesion_kPa)
-        phi = float(friction_deg)
-        if not (np.isfinite(phi) and 0.0 <= phi < 90.0):
-            raise ValueError(f"friction_deg = {friction_deg!r}: allowed 0 <= friction_deg < 90")
-        psi = phi if dilation_deg is None else float(dilation_deg)
-        if not (np.isfinite(psi) and 0.0 <= psi <= phi):
-            raise ValueError(f"dilation_deg = {dilation_deg!r}: allowed 0 <= dilation_deg <= friction_deg = {phi:g}")
-        if self.cohesion == 0.0 and phi == 0.0:
-            raise ValueError("cohesion_kPa = 0 and friction_deg = 0: the material would have no strength")
+        self.cohesion, phi, psi = _frictional(cohesion_kPa, friction_deg, dilation_deg)
         self.friction_deg, self.dilation_deg = phi, psi
         self._sphi, self._spsi = np.sin(np.radians(phi)), np.sin(np.radians(psi))
         self._two_c_cos = 2.0 * self.cohesion * np.cos(np.radians(phi))

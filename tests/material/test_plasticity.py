@@ -64,6 +64,24 @@ def _mixed_axial(model, stress, state, d_axial, lateral_stress, iters=30):
     raise AssertionError("mixed control did not converge")
 
 
+def _plane_strain_limit(model, p0, steps=200):
+    """The stress (3, 3) after ``steps`` of 2e-4 axial compression along z in plane strain (y out of plane at zero
+    strain) with x held at the stress -p0 (Newton on eps_xx)."""
+    st = model.initial_state(1)
+    s = -p0 * np.eye(3)[None]
+    for _ in range(steps):
+        de = np.zeros((1, 3, 3))
+        de[0, 2, 2] = -2e-4
+        for _ in range(30):
+            s1, st1, tan = model.update(de, s, st)
+            r = s1[0, 0, 0] + p0
+            if abs(r) < 1e-9 * p0:
+                break
+            de[0, 0, 0] -= r / tan[0, 0, 0, 0, 0]
+        s, st = s1, st1
+    return s[0].copy()
+
+
 # ----------------------------------------------------------------------------- von Mises
 def test_von_mises_elastic_step_is_hooke():
     m = VonMises(E, NU, 100.0)
@@ -200,20 +218,7 @@ def test_drucker_prager_triaxial_strength_compression_match():
 def test_drucker_prager_plane_strain_limit_is_mohr_coulomb():
     """Plane-strain match + associated flow: the steady plane-strain limit state satisfies Mohr-Coulomb."""
     c, phi, p0 = 10.0, 25.0, 50.0
-    m = DruckerPrager(E, NU, c, phi, match="plane_strain")
-    st = m.initial_state(1)
-    s = -p0 * np.eye(3)[None]
-    # axial z compressed, x at constant stress -p0, y (out of plane) at zero strain
-    for _ in range(200):
-        de = np.zeros((1, 3, 3))
-        de[0, 2, 2] = -2e-4
-        for _ in range(30):
-            s1, st1, tan = m.update(de, s, st)
-            r = s1[0, 0, 0] + p0
-            if abs(r) < 1e-9 * p0:
-                break
-            de[0, 0, 0] -= r / tan[0, 0, 0, 0, 0]
-        s, st = s1, st1
+    s = _plane_strain_limit(DruckerPrager(E, NU, c, phi, match="plane_strain"), p0)[None]
     sig1, sig3 = -s[0, 2, 2], -s[0, 0, 0]  # compression positive, major and minor
     phir = np.deg2rad(phi)
     mc = (sig1 - sig3) / 2 - ((sig1 + sig3) / 2 * np.sin(phir) + c * np.cos(phir))
@@ -364,22 +369,8 @@ def test_mohr_coulomb_plane_strain_limit_is_the_plane_strain_drucker_prager_limi
     """Plane strain with associated flow: Mohr-Coulomb and the plane-strain-matched cone reach the same limit
     state (the match is built for it), with the out-of-plane stress strictly between the other two."""
     c, phi, p0 = 10.0, 25.0, 50.0
-    limits = []
-    for m in (MohrCoulomb(E, NU, c, phi), DruckerPrager(E, NU, c, phi, match="plane_strain")):
-        st = m.initial_state(1)
-        s = -p0 * np.eye(3)[None]
-        for _ in range(200):  # z compressed, x at constant stress -p0, y (out of plane) at zero strain
-            de = np.zeros((1, 3, 3))
-            de[0, 2, 2] = -2e-4
-            for _ in range(30):
-                s1, st1, tan = m.update(de, s, st)
-                r = s1[0, 0, 0] + p0
-                if abs(r) < 1e-9 * p0:
-                    break
-                de[0, 0, 0] -= r / tan[0, 0, 0, 0, 0]
-            s, st = s1, st1
-        limits.append(s[0].copy())
-    mc, dp = limits
+    mc, dp = (_plane_strain_limit(m, p0) for m in (MohrCoulomb(E, NU, c, phi),
+                                                   DruckerPrager(E, NU, c, phi, match="plane_strain")))
     assert mc[2, 2] == pytest.approx(dp[2, 2], rel=1e-6)  # the major stress at the limit
     assert -mc[0, 0] < -mc[1, 1] < -mc[2, 2]
     assert _mc_branches(MohrCoulomb(E, NU, c, phi), mc[None])[0][0] == "plane"
