@@ -52,7 +52,7 @@ __all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
            "local_iterations_max", "continuation_points", "limit_points", "failed_points", "rate",
-           "overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading")
+           "overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes")
 
 
 DESCRIPTIONS = {
@@ -75,6 +75,8 @@ DESCRIPTIONS = {
     "overshoot_pressure": "full Newton step: mean stress of the point with the most unpredicted stress [kPa], "
                           "compression +",
     "overshoot_unloading": "full Newton step: loading planes that stopped loading at that point",
+    "overshoot_planes": "full Newton step: loading planes of that point at the iterate (a vertex of many planes "
+                        "offers strain its tangent cannot hold; docs/cpa_law.md, section 4)",
 }
 
 
@@ -94,7 +96,8 @@ def full_step_overshoot(volume, stress0, tangent0, stress1, direction, loading0=
       step miss; hundreds: the whole body responds nonlinearly; 0 when nothing is missed beyond round-off);
     * ``overshoot_pressure``: the mean stress -tr(sigma0)/3 of the largest share [kPa];
     * ``overshoot_unloading``: how many of its loading planes stop loading at the full step (when the
-      law reports ``loading``, (N, planes) bool, at the iterate and at the full step; else NaN).
+      law reports ``loading``, (N, planes) bool, at the iterate and at the full step; else NaN);
+    * ``overshoot_planes``: how many planes load at that point at the iterate (NaN likewise).
 
     None when the tangent is not a plain (N, 3, 3, 3, 3) array (a coupled field's tangent). No material
     call and no assembly (about 0.2 ms for 2,430 points).
@@ -113,11 +116,13 @@ def full_step_overshoot(volume, stress0, tangent0, stress1, direction, loading0=
     top = int(np.argmax(share))
     out = {"share": share,
            "overshoot_points": int(np.searchsorted(np.cumsum(np.sort(share)[::-1]), 0.5) + 1) if total > 0 else 0,
-           "overshoot_pressure": float(-np.trace(np.asarray(stress0)[top]) / 3.0), "overshoot_unloading": math.nan}
+           "overshoot_pressure": float(-np.trace(np.asarray(stress0)[top]) / 3.0), "overshoot_unloading": math.nan,
+           "overshoot_planes": math.nan}
     if loading0 is not None and loading1 is not None:
         l0, l1 = np.asarray(loading0, dtype=bool), np.asarray(loading1, dtype=bool)
         if l0.shape == l1.shape and l0.ndim == 2:
             out["overshoot_unloading"] = int((l0[top] & ~l1[top]).sum())
+            out["overshoot_planes"] = int(l0[top].sum())
     return out
 
 
@@ -186,7 +191,7 @@ class NewtonLog:
             else math.nan
         row["failed_points"] = int(np.sum(np.asarray(state["status"]) == STATUS_FAILED))
         row["rate"] = math.nan
-        for c in ("overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading"):
+        for c in ("overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes"):
             row[c] = math.nan if overshoot is None else overshoot[c]
         if accepted:
             self._accepted.append(residual)
