@@ -107,9 +107,10 @@ def _count(loading, p) -> str:
 
 
 def _invariants(stress) -> tuple[float, float]:
-    p = -np.trace(stress) / 3.0
-    dev = stress + p * np.eye(3)
-    return p, float(np.sqrt(1.5 * np.sum(dev * dev)))
+    """Mean stress p (compression +) and q of one (3, 3) stress [kPa]."""
+    from material.plasticity import von_mises_stress
+
+    return -np.trace(stress) / 3.0, float(von_mises_stress(stress))
 
 
 def _trace(material, reference, stress_n, state_n, d_eps, direction, tangent0, stress0, label) -> None:
