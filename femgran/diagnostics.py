@@ -75,8 +75,8 @@ DESCRIPTIONS = {
     "overshoot_pressure": "full Newton step: mean stress of the point with the most unpredicted stress [kPa], "
                           "compression +",
     "overshoot_unloading": "full Newton step: loading planes that stopped loading at that point",
-    "overshoot_planes": "full Newton step: loading planes of that point at the iterate (a vertex of many planes "
-                        "offers strain its tangent cannot hold; docs/cpa_law.md, section 4)",
+    "overshoot_planes": "full Newton step: loading planes of that point at the iterate (against those of the "
+                        "other points: docs/cpa_law.md, section 4)",
 }
 
 
