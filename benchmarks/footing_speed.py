@@ -11,7 +11,9 @@ s = 0.1 B in 40 nominal steps) on the default mesh, four soils:
 * ``cpa-thesis-stabilised``: the same with the local step stabilisation of ``CPAModel``.
 
 Each run is timed in this process, after a warm-up that compiles the kernels; the ratio to the
-Drucker-Prager time is printed (target <= 5). Runs that share the cores disturb each other: run it on an
+Drucker-Prager time is printed (target <= 5), and the material evaluations a law needs beyond the cone's:
+for the CPA law that excess hardly changes with ``--steps`` (the events of the run: a point's loading planes
+changing while the mechanism forms), where the iterations per step do. Runs that share the cores disturb each other: run it on an
 idle machine, one numba thread (``NUMBA_NUM_THREADS=1``) for a per-core figure.
 
     python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...]
@@ -65,7 +67,7 @@ def main(argv=None) -> None:
         wall = time.perf_counter() - t0
         h = sol.history
         its = h["iterations"][1:]
-        rows[soil] = (wall, sol)
+        rows[soil] = (wall, sol, sol.newton_log.summary()["evaluations"])
         print(f"{soil:<24} {'done' if sol.completed else 'STOPPED':<8} s = {h['settlement_m'][-1]:.4f} m  "
               f"p = {h['pressure_kPa'][-1]:7.1f} kPa  steps {len(h) - 1:4d}  iterations/step {its.mean():5.2f}  "
               f"{wall:7.1f} s", flush=True)
@@ -76,11 +78,13 @@ def main(argv=None) -> None:
         if not sol.completed:
             print(f"{'':<24} {sol.stop_reason}")
     if "drucker-prager" in rows:
-        base = rows["drucker-prager"][0]
-        for soil, (wall, sol) in rows.items():
+        base, _, base_evals = rows["drucker-prager"]
+        for soil, (wall, sol, evals) in rows.items():
             if soil != "drucker-prager":
                 print(f"time {soil} / drucker-prager: {wall / base:.1f}"
-                      f"{'' if sol.completed else ' (stopped early)'}{'  (target <= 5)' if soil.startswith('cpa') else ''}")
+                      f"{'' if sol.completed else ' (stopped early)'}{'  (target <= 5)' if soil.startswith('cpa') else ''}; "
+                      f"material evaluations {evals} - {base_evals} = {evals - base_evals} more than the cone's "
+                      f"(a number per run, not per step: docs/cpa_law.md, section 4)")
 
 
 if __name__ == "__main__":
