@@ -72,7 +72,8 @@ def main(argv=None) -> None:
               f"p = {h['pressure_kPa'][-1]:7.1f} kPa  steps {len(h) - 1:4d}  iterations/step {its.mean():5.2f}  "
               f"{wall:7.1f} s", flush=True)
         log = sol.newton_log.summary()
-        print(f"{'':<24} material evaluations {log['evaluations']}; full Newton steps {log['full_steps']}, "
+        print(f"{'':<24} material evaluations {log['evaluations']}; a point's loading planes changed "
+              f"{log['points_switched_total']} times over the run; full Newton steps {log['full_steps']}, "
               f"{log['full_steps_rejected']} rejected by the line search (half of their overshoot at a median of "
               f"{log['median_overshoot_points_rejected']:.0f} point(s): femgran.diagnostics.full_step_overshoot)")
         if not sol.completed:

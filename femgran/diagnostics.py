@@ -212,7 +212,9 @@ class NewtonLog:
         return {c: np.array([r[c] for r in self.rows], dtype=float) for c in COLUMNS}
 
     def summary(self) -> dict:
-        """Figures of the whole run: accepted iterations per converged step, switches and rates."""
+        """Figures of the whole run: evaluations, accepted iterations, switches of points and planes between
+        loading and not (per accepted iterate and summed over the run), the largest apex and failed counts, the
+        median convergence rate, and the full Newton steps the line search rejected."""
         t = self.table()
         if not self.rows:
             return {}
@@ -222,6 +224,10 @@ class NewtonLog:
             "accepted_iterations": int(acc.sum()),
             "line_search_rejections": int((~acc).sum()),
             "mean_points_switched": float(np.nanmean(t["points_switched"][acc])) if acc.any() else math.nan,
+            # along the accepted path of the whole run: how often a point's set of loading planes changed (a
+            # number per run, not per step, for the CPA footing: docs/cpa_law.md, section 4)
+            "points_switched_total": int(np.nansum(t["points_switched"][acc])),
+            "planes_switched_total": int(np.nansum(t["planes_switched"][acc])),
             "max_apex_points": float(np.nanmax(t["apex_points"])) if np.isfinite(t["apex_points"]).any() else math.nan,
             "max_failed_points": int(np.nanmax(t["failed_points"])),
             "median_rate": float(np.nanmedian(t["rate"])) if np.isfinite(t["rate"]).any() else math.nan,

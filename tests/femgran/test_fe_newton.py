@@ -421,6 +421,7 @@ def test_newton_log_records_switching_points_and_the_convergence_rate(tmp_path):
     back = read_table(tmp_path / "log.csv")
     assert back.columns == list(COLUMNS) and len(back) == len(log.rows) and back.descriptions["rate"]
     assert log.summary()["accepted_iterations"] == int(t["accepted"].sum())
+    assert log.summary()["points_switched_total"] == 0 and log.summary()["planes_switched_total"] == 0
 
 
 def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_left_the_tangent():
