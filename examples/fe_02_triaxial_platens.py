@@ -23,11 +23,22 @@ from pathlib import Path
 from femgran.cases import triaxial
 
 
+def _mu(text: str) -> float:
+    """``--stabilisation``: a number 0 <= mu <= 1 (the range material.CPAModel allows)."""
+    try:
+        mu = float(text)
+    except ValueError:
+        mu = float("nan")
+    if not 0.0 <= mu <= 1.0:
+        raise argparse.ArgumentTypeError(f"stabilisation = {text!r}: allowed a number 0 <= mu <= 1")
+    return mu
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="out/fe_02_triaxial")
-    ap.add_argument("--stabilisation", type=float, default=0.0, metavar="MU",
+    ap.add_argument("--stabilisation", type=_mu, default=0.0, metavar="MU",
                     help="step stabilisation of the CPA law (default 0: the thesis's law)")
     args = ap.parse_args(argv)
     law = None if args.stabilisation == 0.0 else {"law": "cpa", "stabilisation": args.stabilisation}
