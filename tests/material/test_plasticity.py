@@ -281,17 +281,21 @@ def test_drucker_prager_dilatancy_ratio():
     assert np.allclose(ev[plastic], m.eta_bar / m.xi * st["eq_plastic_strain"][plastic])
 
 
+@pytest.mark.parametrize("law", [DruckerPrager, MohrCoulomb])
+@pytest.mark.parametrize("args, kwargs, key", [
+    ((1.0, 95.0), {}, "friction_deg"), ((1.0, 90.0), {}, "friction_deg"),
+    ((1.0, 30.0), {"dilation_deg": 40.0}, "dilation_deg"), ((1.0, 30.0), {"dilation_deg": 35.0}, "dilation_deg"),
+    ((-1.0, 30.0), {}, "cohesion_kPa"), ((0.0, 0.0), {}, "no strength")])
+def test_frictional_laws_bad_input(law, args, kwargs, key):
+    """The checks Drucker-Prager and Mohr-Coulomb share (material.plasticity._frictional): the message names
+    the key."""
+    with pytest.raises(ValueError, match=key):
+        law(E, NU, *args, **kwargs)
+
+
 def test_drucker_prager_bad_input():
-    with pytest.raises(ValueError, match="friction_deg"):
-        DruckerPrager(E, NU, 1.0, 95.0)
-    with pytest.raises(ValueError, match="dilation_deg"):
-        DruckerPrager(E, NU, 1.0, 30.0, dilation_deg=40.0)
     with pytest.raises(ValueError, match="match"):
         DruckerPrager(E, NU, 1.0, 30.0, match="outer")
-    with pytest.raises(ValueError, match="cohesion_kPa"):
-        DruckerPrager(E, NU, -1.0, 30.0)
-    with pytest.raises(ValueError, match="no strength"):
-        DruckerPrager(E, NU, 0.0, 0.0)
 
 
 def test_von_mises_softening_is_linear_then_floored_at_zero_with_a_consistent_tangent():
@@ -407,13 +411,5 @@ def test_mohr_coulomb_returns_onto_its_planes_edges_and_apex_with_the_consistent
 
 
 def test_mohr_coulomb_bad_input():
-    with pytest.raises(ValueError, match="friction_deg"):
-        MohrCoulomb(E, NU, 1.0, 90.0)
-    with pytest.raises(ValueError, match="dilation_deg"):
-        MohrCoulomb(E, NU, 1.0, 30.0, dilation_deg=35.0)
-    with pytest.raises(ValueError, match="cohesion_kPa"):
-        MohrCoulomb(E, NU, -1.0, 30.0)
-    with pytest.raises(ValueError, match="no strength"):
-        MohrCoulomb(E, NU, 0.0, 0.0)
     with pytest.raises(ValueError, match="nu"):
         MohrCoulomb(E, 0.5, 1.0, 30.0)
