@@ -67,11 +67,11 @@ def main(argv=None) -> None:
         wall = time.perf_counter() - t0
         h = sol.history
         its = h["iterations"][1:]
-        rows[soil] = (wall, sol, sol.newton_log.summary()["evaluations"])
+        log = sol.newton_log.summary()
+        rows[soil] = (wall, sol, log["evaluations"])
         print(f"{soil:<24} {'done' if sol.completed else 'STOPPED':<8} s = {h['settlement_m'][-1]:.4f} m  "
               f"p = {h['pressure_kPa'][-1]:7.1f} kPa  steps {len(h) - 1:4d}  iterations/step {its.mean():5.2f}  "
               f"{wall:7.1f} s", flush=True)
-        log = sol.newton_log.summary()
         print(f"{'':<24} material evaluations {log['evaluations']}; a point's loading planes changed "
               f"{log['points_switched_total']} times over the run; full Newton steps {log['full_steps']}, "
               f"{log['full_steps_rejected']} rejected by the line search (half of their overshoot at a median of "
