@@ -5,7 +5,8 @@ one limit point per step along its line) and the near-failure point (8 limit poi
 kernel (`material._cpa_local.update_past_limits`, numba, warm-started bisection) is timed against
 `material.cpa_reference.follow_past_limits` (the first version: a Python loop over the points' arrays,
 bisecting the whole fraction with solves from the start of the rest), both without the tangent, and the
-kernel with its central-difference tangent. Times are the best of ``--repeat`` runs after a warm-up; the
+kernel with its forward-difference tangent (whose continuations skip the solves that failed far
+beyond the limit in the step's own). Times are the best of ``--repeat`` runs after a warm-up; the
 ratios are what to quote.
 
     python benchmarks/limit_points.py [--repeat 3] [--copies 4]

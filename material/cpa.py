@@ -23,7 +23,7 @@ in the fraction of the increment, is taken as the start of the rest of the incre
 the same way (up to :attr:`CPAModel.MAX_LIMIT_POINTS` times). The stress stays a deterministic function
 of (d_strain, stress, state), and it is continuous where the one-step answer was not: through the onset
 of a limit point (the fraction tends to 1) and where the limit moves to the start of the step (the rest
-is then the whole increment). At such a point the tangent is the central difference of this function
+is then the whole increment). At such a point the tangent is the forward difference of this function
 (``state["limit_points"]`` counts them; the rate-independent local hardening law only). A point that
 still cannot be integrated returns its start-of-step stress, ``status = STATUS_FAILED`` and the fraction
 it reached as a suggested step ratio, never NaN; its inputs are kept (and written to ``replay_dir``) so
