@@ -1224,18 +1224,11 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
         # the limit state (the planes' slips and ratios evaluated again at it)
         for i in range(6):
             de_lam[i] = lam_done * de[i]
-            sig_out[i] = sig_done[i]
+            sig[i] = sig_done[i]
         for a in range(M):
             dk[a] = dk_done[a] if strong[a] else 0.0
-        evaluate(law, pd, pt, sig_done, dk, dl_done, s_done, False, plane, ws)
-        best = 0.0
-        for a in range(M):
-            slip = plane[_P_SLIP, a]
-            kap_out[a] = kap_n[a] + max(slip, 0.0)
-            loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
-            best = max(best, plane[_P_RATIO, a] / eta_f[a])
-        return LIMIT, total_its, halvings, lam_done, dl_done, best, mu, 0.0
-    # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
+        evaluate(law, pd, pt, sig, dk, dl_done, s_done, False, plane, ws)
+    # the solution (at lam = 1: sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
     over = 0.0
     for a in range(M):
@@ -1247,6 +1240,8 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
             over = max(over, ws.floor[a] * slip / plane[_P_RATIO, a])
     for i in range(6):
         sig_out[i] = sig[i]
+    if st == LIMIT:
+        return LIMIT, total_its, halvings, lam_done, dl_done, best, mu, 0.0
     grad_out[0] = s_done
     if opt.tangent:
         _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out)
