@@ -16,6 +16,7 @@ from material._cpa_local import (
     _ratios,
     _uniqueness_floor,
     floor_unit,
+    make_path,
     make_workspace,
     plane_data,
     update_past_limits,
@@ -49,23 +50,24 @@ def cpa_batch(law, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift
     block = (N + nchunk - 1) // max(nchunk, 1)
     for c in prange(nchunk):
         ws = make_workspace(M)
+        path = make_path()
         pd = plane_data(law)
         _update_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
                        D_out, loading, grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu,
-                       overstress, limits, c * block, min(N, (c + 1) * block), ws)
+                       overstress, limits, c * block, min(N, (c + 1) * block), ws, path)
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _update_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
                    loading, grad_out, status, iterations, halvings, reached, opening, mobilised, floor_mu, overstress,
-                   limits, start, stop, ws):
-    """The points start..stop-1 of :func:`cpa_batch` with the workspace ``ws`` of one thread. (A function of
-    its own, without reference counting, so that the rows of the point arrays it passes on cost no atomic
-    count updates: :data:`material._cpa_plane.NO_REFCOUNT`.)"""
+                   limits, start, stop, ws, path):
+    """The points start..stop-1 of :func:`cpa_batch` with the workspace ``ws`` and the recorded path ``path``
+    of one thread. (A function of its own, without reference counting, so that the rows of the point arrays
+    it passes on cost no atomic count updates: :data:`material._cpa_plane.NO_REFCOUNT`.)"""
     for p in range(start, stop):
         st, its, hv, lam, dl, best, mu, over, nlim = update_past_limits(
             law, pd, opt, lim, sig_n[p], de[p], eps_n[p], kap_n[p], soft[p], c0[p], m_over, nl_shift[p], sig_out[p],
-            kap_out[p], D_out[p], loading[p], grad_out[p], ws)
+            kap_out[p], D_out[p], loading[p], grad_out[p], ws, path)
         status[p] = st
         iterations[p] = its
         halvings[p] = hv

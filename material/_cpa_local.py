@@ -80,7 +80,7 @@ tests compare against (:func:`material.cpa_reference.follow_past_limits`).
 Most of a continuation's Newton iterations are in the solves that fail beyond the limit before the
 halvings run out, each taking all its iterations with line searches of up to 40 halvings. The
 continuations of the tangent take the same sequence of fractions as the step's own, and skip the solves
-that failed there far beyond the limit (:func:`_follow`, :func:`_fails_again`); with the forward
+that failed there far beyond the limit (:func:`_fails_again`); with the forward
 difference this makes the tangent 2.2 times cheaper on the stored points (the footing's fold point 47 ms
 with it, against 102 ms with the central difference and no skipping) and the rough-platen triaxial
 specimen at alpha = 0 (120 steps, where limit points were 95 % of the time) 1.65 times faster, with the
@@ -236,21 +236,25 @@ Work = namedtuple("Work", [
     "mats",                   # (2, 6, 6): d Lambda / d eps, induced correction T
     "tableau",                # (M, 2 M + 2) Lemke's tableau of the rate problem
     "basis",                  # (M,) int: its basic variables
-    "path",                   # (_PATH,) the fractions :func:`_follow` tried, part after part of a step past limit
-                              # points, negative where the solve failed (recorded by the continuation, read by the
-                              # continuations of its tangent)
-    "path_end",               # (_PATH_PARTS,) int: each part's end in ``path``
-    "path_limit",             # (_PATH_PARTS,) each part's limit (its end's fraction; 1: the part ended the step)
-    "path_at",                # (5,) int: mode (_PATH_OFF, _PATH_RECORD, _PATH_READ), parts recorded, fractions
-                              # recorded, the part read next, the fraction read next
 ])
 _V_R, _V_SIG, _V_SIG_TRY, _V_SIG_DONE, _V_LAM, _V_EPS, _V_DE, _V_ELL, _V_S0, _V_S1, _V_S2, _V_COL = range(12)
-#: Modes of the recorded path (:func:`update_past_limits`): off; record the fractions :func:`_follow` tries
+#: Modes of the recorded path (:func:`update_past_limits`): off; record the fractions :func:`point_update` tries
 #: and their outcomes; read them (the perturbed continuations of the tangent past a limit point).
 _PATH_OFF, _PATH_RECORD, _PATH_READ = 0, 1, 2
 #: Capacity of the recorded path: fractions, and parts (a step past 16 limit points has 17; a part tries about
 #: 20 fractions before it locates its limit). Past either, recording stops and nothing is skipped.
 _PATH, _PATH_PARTS = 1024, 64
+#: Layout of the recorded path, one array of a thread (its own argument of point_update: a field of Work
+#: would add to every call that passes the workspace; measured, four arrays more in Work made
+#: ``benchmarks/material_update.py`` 8 % slower): the mode, parts recorded, fractions recorded, the part
+#: read next and the fraction read next (counts held as floats); from _PATH_END each part's end in the
+#: fractions, from _PATH_LIMIT each part's limit (its end's fraction; 1: the part ended the step), from
+#: _PATH_FRAC the fractions tried, negative where the solve failed.
+_PATH_MODE, _PATH_NPARTS, _PATH_N, _PATH_RPART, _PATH_RPOS = range(5)
+_PATH_END = 5
+_PATH_LIMIT = _PATH_END + _PATH_PARTS
+_PATH_FRAC = _PATH_LIMIT + _PATH_PARTS
+_PATH_SIZE = _PATH_FRAC + _PATH
 #: A continuation of the tangent skips a solve that failed in the unperturbed step at the same point of the
 #: same sequence of fractions when the fraction lies beyond (1 + _BEYOND) times that part's limit: it fails
 #: again. Measured on the footing's fold point: a perturbation of 1e-9 of the scale moves the limit by up to
@@ -274,9 +278,13 @@ def make_workspace(M):
                 np.empty((7, 7)), np.empty((_NSYS, _NSYS)), np.empty(_NSYS), np.empty(_NSYS),
                 np.empty(_NSYS, dtype=np.int64),
                 np.empty((12, 6)), np.empty((2, 6, 6)),
-                np.empty((M, 2 * M + 2)), np.empty(M, dtype=np.int64),
-                np.empty(_PATH), np.empty(_PATH_PARTS, dtype=np.int64), np.empty(_PATH_PARTS),
-                np.zeros(5, dtype=np.int64))
+                np.empty((M, 2 * M + 2)), np.empty(M, dtype=np.int64))
+
+
+@njit(cache=True, error_model="numpy")
+def make_path():
+    """The recorded path of one thread (:data:`_PATH_MODE` ...), off."""
+    return np.zeros(_PATH_SIZE)
 
 
 @njit(cache=True, error_model="numpy")
@@ -979,162 +987,75 @@ def _keep_start(law, tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading):
         loading[a] = False
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _solve_fraction(law, pd, opt, pt, de, lam, dl_done, s_done, ws):
-    """Newton's solve of the fraction ``lam`` of the increment ``de`` from the solution at the last fraction
-    reached (ws.vecs[_V_SIG_DONE], ws.dk_done, dl_done, s_done). Returns :func:`_newton`'s tuple; the iterate
-    is in ws.vecs[_V_SIG], ws.dk."""
-    de_lam, sig, sig_done = ws.vecs[_V_DE], ws.vecs[_V_SIG], ws.vecs[_V_SIG_DONE]
-    for i in range(6):
-        de_lam[i] = lam * de[i]
-        sig[i] = sig_done[i]
-    for a in range(pt.kap_n.shape[0]):
-        ws.dk[a] = ws.dk_done[a] if pt.strong[a] else 0.0
-        ws.floor[a] = ws.floor0[a] / (lam * opt.step)
-    return _newton(law, pd, opt, pt, sig, ws.dk, dl_done, s_done, ws)
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _reach(ws):
-    """The solve of a fraction converged: its solution becomes the last one reached."""
-    sig, sig_done = ws.vecs[_V_SIG], ws.vecs[_V_SIG_DONE]
-    for i in range(6):
-        sig_done[i] = sig[i]
-    for a in range(ws.dk.shape[0]):
-        ws.dk_done[a] = ws.dk[a]
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _tried(lam, converged, ws):
-    """When recording, :func:`_follow` has tried the fraction ``lam``."""
-    at = ws.path_at
-    if at[0] != _PATH_RECORD:
+@njit(cache=True, inline="always", error_model="numpy", **NO_REFCOUNT)
+def _tried(lam, converged, path):
+    """When recording, :func:`point_update` has tried the fraction ``lam`` (converged or not)."""
+    if path[_PATH_MODE] != _PATH_RECORD:
         return
-    if at[2] >= _PATH:
-        at[0] = _PATH_OFF  # (past the capacity: nothing is skipped)
+    n = int(path[_PATH_N])
+    if n >= _PATH:
+        path[_PATH_MODE] = _PATH_OFF  # (past the capacity: nothing is skipped)
         return
-    ws.path[at[2]] = lam if converged else -lam
-    at[2] += 1
+    path[_PATH_FRAC + n] = lam if converged else -lam
+    path[_PATH_N] = n + 1
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _part_ends(lam_end, ws):
+@njit(cache=True, inline="always", error_model="numpy", **NO_REFCOUNT)
+def _part_ends(lam_end, path):
     """When recording, a part of the step has ended at the fraction ``lam_end`` (its limit, or 1); when
     reading, the next part is read from its beginning."""
-    at = ws.path_at
-    if at[0] == _PATH_READ:
-        at[3] += 1
-        if at[3] < at[1]:
-            at[4] = ws.path_end[at[3] - 1]
+    if path[_PATH_MODE] == _PATH_READ:
+        k = int(path[_PATH_RPART]) + 1
+        path[_PATH_RPART] = k
+        if k < path[_PATH_NPARTS]:
+            path[_PATH_RPOS] = path[_PATH_END + k - 1]
         return
-    if at[0] != _PATH_RECORD:
+    if path[_PATH_MODE] != _PATH_RECORD:
         return
-    if at[1] >= _PATH_PARTS:
-        at[0] = _PATH_OFF
+    k = int(path[_PATH_NPARTS])
+    if k >= _PATH_PARTS:
+        path[_PATH_MODE] = _PATH_OFF
         return
-    ws.path_end[at[1]] = at[2]
-    ws.path_limit[at[1]] = lam_end
-    at[1] += 1
+    path[_PATH_END + k] = path[_PATH_N]
+    path[_PATH_LIMIT + k] = lam_end
+    path[_PATH_NPARTS] = k + 1
 
 
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _fails_again(lam, ws):
+@njit(cache=True, inline="always", error_model="numpy", **NO_REFCOUNT)
+def _fails_again(lam, path):
     """When reading: the unperturbed step tried ``lam`` next in this part, failed, and ``lam`` lies beyond
     (1 + _BEYOND) times the part's limit (then the solve is skipped: it fails again). Moves the reading on
-    while the sequence of fractions is the recorded one."""
-    at = ws.path_at
-    if at[0] != _PATH_READ or at[3] >= at[1] or at[4] >= ws.path_end[at[3]]:
-        return False
-    rec = ws.path[at[4]]
-    if abs(rec) != lam:  # (the sequence has left the recorded one: nothing more is skipped in this part)
-        at[4] = ws.path_end[at[3]]
-        return False
-    at[4] += 1
-    return rec < 0.0 and lam > (1.0 + _BEYOND) * ws.path_limit[at[3]]
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _locate(law, pd, opt, pt, de, lo, hi, dl_done, s_done, ws):
-    """The end of the branch between the fraction ``lo``, the last reached, and ``hi``, where the solve
-    failed: bisection to 2**-opt.locate of the increment, each trial a solve from the solution at the last
-    fraction reached. Returns (the limit's fraction, Newton iterations, dl_done, s_done there)."""
-    its_sum = 0
-    width = 0.5 ** opt.locate
-    while hi - lo > width:
-        mid = 0.5 * (lo + hi)
-        converged, its, dl, S = _solve_fraction(law, pd, opt, pt, de, mid, dl_done, s_done, ws)
-        its_sum += its
-        if not converged:
-            hi = mid
-            continue
-        lo = mid
-        _reach(ws)
-        dl_done, s_done = dl, S
-    return lo, its_sum, dl_done, s_done
-
-
-@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
-def _follow(law, pd, opt, pt, de, ws):
-    """Follow the branch from the start of the step (the module docstring): the fraction lam_done + h of the
-    increment from the solution at the last fraction reached, h doubled after each success and halved after
-    each failure; where the halvings run out, the limit of the branch located (``opt.locate`` > 0). Returns
-    (OK, LIMIT or FAILED, Newton iterations, halvings, the fraction reached, dl_done, s_done).
+    while the sequence of fractions is the recorded one.
 
     The continuations of the tangent past a limit point (:func:`update_past_limits`) take the same sequence
-    of fractions as a fresh follow of their increments, but skip the solves that failed far beyond the
-    limit in the unperturbed step (:func:`_fails_again`): each of those runs to the last Newton iteration
-    with line searches of up to 40 halvings, and they are most of a follow's iterations (the footing's fold
-    point: 10 of the 13 failed solves, about 200 of its 390 iterations). Skipping a solve that fails anyway
-    leaves the follow as it was: the same fractions, the same limit, the same stress."""
-    lam_done, dl_done, s_done = 0.0, 0.0, 0.0
-    h = 1.0
-    halvings = 0
-    total_its = 0
-    rate_solved = False
-    while lam_done < 1.0:
-        lam = min(1.0, lam_done + h)
-        converged, dl, S = False, 0.0, 0.0
-        if not _fails_again(lam, ws):
-            converged, its, dl, S = _solve_fraction(law, pd, opt, pt, de, lam, dl_done, s_done, ws)
-            total_its += its
-        _tried(lam, converged, ws)
-        if converged:
-            lam_done = lam
-            _reach(ws)
-            dl_done, s_done = dl, S
-            h = min(2.0 * h, 1.0)
-        elif lam_done == 0.0 and not rate_solved:
-            # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
-            _rate_active_set(law, _whole_step(pt, de), ws)
-            rate_solved = True
-        else:
-            h *= 0.5
-            halvings += 1
-            if halvings > opt.max_halvings and opt.locate > 0 and lam_done > 0.0:
-                # the branch ends between lam_done and the fraction tried last
-                lam_done, its, dl_done, s_done = _locate(law, pd, opt, pt, de, lam_done, min(1.0, lam_done + 2.0 * h),
-                                                         dl_done, s_done, ws)
-                _part_ends(lam_done, ws)
-                return LIMIT, total_its + its, halvings, lam_done, dl_done, s_done
-            if halvings > opt.max_halvings:
-                return FAILED, total_its, halvings, lam_done, dl_done, s_done
-    _part_ends(1.0, ws)
-    return OK, total_its, halvings, lam_done, dl_done, s_done
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _whole_step(pt, de):
-    """``pt`` with the whole increment ``de`` (the rate problem's data)."""
-    return Point(pt.sig_n, de, pt.kap_n, pt.soft, pt.eta_f, pt.shift, pt.strong, pt.select, pt.floor, pt.r_scale,
-                 pt.post, pt.coupled, pt.c0, pt.m_over, pt.nl_shift)
+    of fractions as a fresh follow of their increments; each solve that fails far beyond the limit runs to
+    the last Newton iteration with line searches of up to 40 halvings, and those are most of a follow's
+    iterations (the footing's fold point: 10 of its 13 failed solves, about 200 of its 388 iterations).
+    Skipping a solve that fails anyway leaves the follow as it was: the same fractions, the same limit, the
+    same stress."""
+    if path[_PATH_MODE] != _PATH_READ:
+        return False
+    k = int(path[_PATH_RPART])
+    if k >= path[_PATH_NPARTS]:
+        return False
+    pos, end = int(path[_PATH_RPOS]), int(path[_PATH_END + k])
+    if pos >= end:
+        return False
+    rec = path[_PATH_FRAC + pos]
+    if abs(rec) != lam:  # (the sequence has left the recorded one: nothing more is skipped in this part)
+        path[_PATH_RPOS] = end
+        return False
+    path[_PATH_RPOS] = pos + 1
+    return rec < 0.0 and lam > (1.0 + _BEYOND) * path[_PATH_LIMIT + k]
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
-                 loading, grad_out, ws):
+                 loading, grad_out, ws, path):
     """Integrate one Gauss point (Mandel vectors; see the module docstring for the algorithm).
 
-    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`. ``c0``, ``m_over`` and
+    ``pd`` is :func:`plane_data` of ``law``, ``ws`` the thread's :func:`make_workspace`, ``path`` its
+    :func:`make_path` (off, except in :func:`update_past_limits`). ``c0``, ``m_over`` and
     ``nl_shift`` (M,): the implicit gradient's shift m t d_ebar [m] of this step, m (``m_over`` = 0: no
     gradient) and the shift each plane past its peak has accumulated (its kappa_hat - kappa at the start).
     Outputs: sig_out (6,), kap_out (M,), D_out (6, 6) d sigma / d d_eps (if ``opt.tangent``), loading (M,)
@@ -1216,19 +1137,87 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
         sig_done[i] = sig_n[i]
     for a in range(M):
         dk_done[a] = 0.0
-    st, total_its, halvings, lam_done, dl_done, s_done = _follow(law, pd, opt, pt, de, ws)
-    if st == FAILED:
-        _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
-        return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu, 0.0
-    if st == LIMIT:
-        # the limit state (the planes' slips and ratios evaluated again at it)
+    dl_done = 0.0
+    s_done = 0.0
+    lam_done = 0.0
+    h = 1.0
+    halvings = 0
+    total_its = 0
+    rate_solved = False
+    while lam_done < 1.0:
+        lam = min(1.0, lam_done + h)
         for i in range(6):
-            de_lam[i] = lam_done * de[i]
+            de_lam[i] = lam * de[i]
             sig[i] = sig_done[i]
         for a in range(M):
             dk[a] = dk_done[a] if strong[a] else 0.0
-        evaluate(law, pd, pt, sig, dk, dl_done, s_done, False, plane, ws)
-    # the solution (at lam = 1: sig, dk, plane and the LU factors of J are those of the last Newton solve)
+            ws.floor[a] = ws.floor0[a] / (lam * opt.step)
+        converged, dl, S = False, 0.0, 0.0
+        if not _fails_again(lam, path):  # (the tangent's continuations past a limit point: _fails_again)
+            converged, its, dl, S = _newton(law, pd, opt, pt, sig, dk, dl_done, s_done, ws)
+            total_its += its
+        _tried(lam, converged, path)
+        if converged:
+            lam_done = lam
+            for i in range(6):
+                sig_done[i] = sig[i]
+            for a in range(M):
+                dk_done[a] = dk[a]
+            dl_done = dl
+            s_done = S
+            h = min(2.0 * h, 1.0)
+        elif lam_done == 0.0 and not rate_solved:
+            # the branches at the kinks of sigma_n from the rate problem, then the same fraction again
+            _rate_active_set(law, Point(sig_n, de, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale,
+                                        post, coupled, c0, m_over, nl_shift), ws)
+            rate_solved = True
+        else:
+            h *= 0.5
+            halvings += 1
+            if halvings > opt.max_halvings and opt.locate > 0 and lam_done > 0.0:
+                # the branch ends between lam_done and the fraction tried last: its end, by bisection, each
+                # trial a Newton solve from the solution at the last fraction reached
+                lo, hi = lam_done, min(1.0, lam_done + 2.0 * h)
+                width = 0.5 ** opt.locate
+                while hi - lo > width:
+                    mid = 0.5 * (lo + hi)
+                    for i in range(6):
+                        de_lam[i] = mid * de[i]
+                        sig[i] = sig_done[i]
+                    for a in range(M):
+                        dk[a] = dk_done[a] if strong[a] else 0.0
+                    converged, its, dl, S = _newton(law, pd, opt, pt, sig, dk, dl_done, s_done, ws)
+                    total_its += its
+                    if not converged:
+                        hi = mid
+                        continue
+                    lo = mid
+                    for i in range(6):
+                        sig_done[i] = sig[i]
+                    for a in range(M):
+                        dk_done[a] = dk[a]
+                    dl_done = dl
+                    s_done = S
+                _part_ends(lo, path)
+                # the limit state (the planes' slips and ratios evaluated again at it)
+                for i in range(6):
+                    de_lam[i] = lo * de[i]
+                    sig_out[i] = sig_done[i]
+                for a in range(M):
+                    dk[a] = dk_done[a] if strong[a] else 0.0
+                evaluate(law, pd, pt, sig_done, dk, dl_done, s_done, False, plane, ws)
+                best = 0.0
+                for a in range(M):
+                    slip = plane[_P_SLIP, a]
+                    kap_out[a] = kap_n[a] + max(slip, 0.0)
+                    loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
+                    best = max(best, plane[_P_RATIO, a] / eta_f[a])
+                return LIMIT, total_its, halvings, lo, dl_done, best, mu, 0.0
+            if halvings > opt.max_halvings:
+                _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
+                return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu, 0.0
+    _part_ends(1.0, path)
+    # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
     best = 0.0
     over = 0.0
     for a in range(M):
@@ -1240,8 +1229,6 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
             over = max(over, ws.floor[a] * slip / plane[_P_RATIO, a])
     for i in range(6):
         sig_out[i] = sig[i]
-    if st == LIMIT:
-        return LIMIT, total_its, halvings, lam_done, dl_done, best, mu, 0.0
     grad_out[0] = s_done
     if opt.tangent:
         _tangent(law, soft, eps_end, strong, pt, ws, D_out, grad_out)
@@ -1342,7 +1329,7 @@ def _without_tangent(opt):
 
 @njit(cache=True, error_model="numpy", **REFCOUNT)
 def _follow_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
-                        loading, grad_out, ws, lam0, its0, hv0, dl0):
+                        loading, grad_out, ws, path, lam0, its0, hv0, dl0):
     """The step followed past the limit points of its branch, no tangent (``opt.locate`` > 0). ``lam0`` > 0:
     :func:`point_update` of the whole step has ended at a limit point at that fraction, and ``sig_out``,
     ``kap_out``, ``loading`` hold the limit state (its iterations, halvings and opening: its0, hv0, dl0);
@@ -1361,7 +1348,7 @@ def _follow_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_
     if lam0 == 0.0:
         st, its_sum, hv_sum, lam, dl_sum, best, mu, over = point_update(
             law, pd, one, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_none, loading,
-            grad_out, ws)
+            grad_out, ws, path)
     count = 0
     while st == LIMIT and count < lim.max_points:
         # the limit state starts the rest of the step
@@ -1375,7 +1362,7 @@ def _follow_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_
             path_load[a] = path_load[a] or loading[a]
         st, its, hv, lam, dl, best, mu, over = point_update(
             law, pd, one, cur_sig, rest, cur_eps, cur_kap, soft, c0, m_over, nl_shift, sig_out, kap_out, D_none,
-            loading, grad_out, ws)
+            loading, grad_out, ws, path)
         its_sum += its
         hv_sum += hv
         dl_sum += dl
@@ -1388,7 +1375,7 @@ def _follow_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def update_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
-                       D_out, loading, grad_out, ws):
+                       D_out, loading, grad_out, ws, path):
     """:func:`point_update`, and where its branch ends at a limit point within the step (``opt.locate`` > 0),
     the step followed past the limit points of the branch (module docstring, "Past a limit point"), with
     the forward-difference tangent there. Returns point_update's tuple and the number of limit points
@@ -1396,28 +1383,28 @@ def update_past_limits(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_o
     fraction its branch reached. (The continuation, which allocates, is :func:`_past_limit_points`: this
     function, called for every point, runs without reference counting.)"""
     # the fractions the branch tries are recorded for the tangent's continuations past a limit point
-    ws.path_at[0] = _PATH_RECORD if opt.tangent and lim.max_points > 0 else _PATH_OFF
-    ws.path_at[1] = 0
-    ws.path_at[2] = 0
+    path[_PATH_MODE] = _PATH_RECORD if opt.tangent and lim.max_points > 0 else _PATH_OFF
+    path[_PATH_NPARTS] = 0
+    path[_PATH_N] = 0
     st, its, hv, lam, dl, best, mu, over = point_update(
         law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out, loading,
-        grad_out, ws)
+        grad_out, ws, path)
     if st != LIMIT:
-        ws.path_at[0] = _PATH_OFF
+        path[_PATH_MODE] = _PATH_OFF
         return st, its, hv, lam, dl, best, mu, over, 0
     return _past_limit_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out,
-                              kap_out, D_out, loading, grad_out, ws, lam, its, hv, dl)
+                              kap_out, D_out, loading, grad_out, ws, path, lam, its, hv, dl)
 
 
 @njit(cache=True, error_model="numpy", **REFCOUNT)
 def _past_limit_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out,
-                       D_out, loading, grad_out, ws, lam, its, hv, dl):
+                       D_out, loading, grad_out, ws, path, lam, its, hv, dl):
     """The rest of :func:`update_past_limits` after :func:`point_update` has ended at a limit point at the
     fraction ``lam`` (its iterations, halvings and opening: its, hv, dl): the continuation and its tangent."""
     reached = lam
     ok, its, hv, dl, best, mu, over, count = _follow_past_limits(
         law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, loading, grad_out,
-        ws, lam, its, hv, dl)
+        ws, path, lam, its, hv, dl)
     M = kap_n.shape[0]
     if ok and opt.tangent:
         # the step of the difference: fd_step (|d_eps| + |sigma_n| / E), in tensor components
@@ -1430,18 +1417,18 @@ def _past_limit_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_o
         h = lim.fd_step * (size_de + size_sig * law.comp[0, 0])
         de_p, sig_p, kap_p, load_p, grad_p = de.copy(), np.empty(6), np.empty(M), np.empty(M, dtype=np.bool_), \
             np.empty(14)
-        if ws.path_at[0] == _PATH_RECORD:
-            ws.path_at[0] = _PATH_READ
+        if path[_PATH_MODE] == _PATH_RECORD:
+            path[_PATH_MODE] = _PATH_READ
         for j in range(6):
-            ws.path_at[3] = 0  # read from the first part's first fraction
-            ws.path_at[4] = 0
+            path[_PATH_RPART] = 0  # read from the first part's first fraction
+            path[_PATH_RPOS] = 0
             de_p[j] = de[j] + h
             ok = ok and _follow_past_limits(law, pd, opt, lim, sig_n, de_p, eps_n, kap_n, soft, c0, m_over,
-                                            nl_shift, sig_p, kap_p, load_p, grad_p, ws, 0.0, 0, 0, 0.0)[0]
+                                            nl_shift, sig_p, kap_p, load_p, grad_p, ws, path, 0.0, 0, 0, 0.0)[0]
             for i in range(6):  # (s+ - s) / h
                 D_out[i, j] = (sig_p[i] - sig_out[i]) / h
             de_p[j] = de[j]
-    ws.path_at[0] = _PATH_OFF
+    path[_PATH_MODE] = _PATH_OFF
     if not ok:
         _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
         return FAILED, its, hv, reached, 0.0, np.nan, mu, 0.0, 0

@@ -349,7 +349,7 @@ def test_the_kernel_passes_limit_points_as_the_plain_loop_of_the_reference_does(
 
 def test_the_tangent_past_a_limit_point_is_the_forward_difference_of_the_update_itself():
     """The tangent past a limit point is the forward difference of the continuation, and its continuations
-    skip the solves that failed far beyond the limit in the step's own (material._cpa_local._follow). The
+    skip the solves that failed far beyond the limit in the step's own (material._cpa_local._fails_again). The
     skipping must not change the function: each column equals the difference of two updates without the
     tangent, which skip nothing, to round-off (the fold point at four places along its line, whose limit
     moves by up to 3.5 % of the increment under the perturbation, and the near-failure point with 8 limit
