@@ -81,9 +81,9 @@ Most of a continuation's Newton iterations are in the solves that fail beyond th
 halvings run out, each taking all its iterations with line searches of up to 40 halvings. The
 continuations of the tangent take the same sequence of fractions as the step's own, and skip the solves
 that failed there far beyond the limit (:func:`_fails_again`); with the forward
-difference this makes the tangent 2.2 times cheaper on the stored points (the footing's fold point 47 ms
+difference this makes the tangent 2.8 times cheaper on the stored points (the footing's fold point 37 ms
 with it, against 102 ms with the central difference and no skipping) and the rough-platen triaxial
-specimen at alpha = 0 (120 steps, where limit points were 95 % of the time) 1.65 times faster, with the
+specimen at alpha = 0 (120 steps, where limit points were 95 % of the time) 2.0 times faster, with the
 same Newton iterations and the same stresses to 1e-10 (``docs/cpa_law.md``, section 3). The cheaper
 shortcut, starting the continuations' bisections from the located limit, does not compute the same
 function: the limit moves by up to 3.5 % of the increment under a perturbation of 1e-9 of its scale, and
