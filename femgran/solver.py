@@ -47,6 +47,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from femgran.state import PointState
+from material.base import step_fraction
 from material.table import Table, read_table
 
 __all__ = ["Dirichlet", "PathControl", "SolverOptions", "Solution", "History", "NewtonSolver", "LinearSolver",
@@ -415,8 +416,8 @@ class NewtonSolver:
         self._near_nullspace = None
         self.linear = None  # LinearSolver, made at the first solve
         self._last_increment = None  # (du, dt) of the last converged step, for the extrapolating predictor
-        # the step being solved, in units of the nominal step: the time input of rate-dependent laws
-        # (material.base; the CPA law's step stabilisation relaxes over one nominal step)
+        # the step being solved, in relaxation times of a rate-dependent law (material.base.step_fraction:
+        # the law's relaxation_time, or one nominal step)
         self.step_fraction = 1.0
 
     # ------------------------------------------------------------------ pieces
@@ -446,7 +447,7 @@ class NewtonSolver:
 
     def _point_inputs(self, du) -> dict:
         """The material's inputs besides the strain increment: the coupled field's increment
-        (``disc.point_inputs``) and, for a rate-dependent law, the step's size in nominal steps."""
+        (``disc.point_inputs``) and, for a rate-dependent law, the step's size in its relaxation times."""
         inputs = self.disc.point_inputs(du)
         if getattr(self.points.material, "rate_dependent", False):
             inputs["step_fraction"] = self.step_fraction
@@ -752,7 +753,7 @@ class NewtonSolver:
         self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log}
         while position() < t_end * (1 - 1e-12):
             dt = min(dt, t_end - position())
-            self.step_fraction = dt / dt0
+            self.step_fraction = step_fraction(self.points.material, dt, dt0)
             t0 = time.perf_counter()
             try:
                 if control is None:

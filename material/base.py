@@ -36,14 +36,17 @@ coupled problem) take one more input and return a richer tangent::
   ordinary (N, 3, 3, 3, 3) array.
 
 Rate-dependent laws (``material.rate_dependent`` true, e.g. the CPA law with its step stabilisation, a
-viscosity whose relaxation time is one nominal load step) also take the step's size::
+viscosity) also take the step's size::
 
     stress, state, tangent = material.update(d_strain, stress, state, step_fraction=f)
 
-* ``f`` > 0: the step's size in units of the run's nominal step (the FE solver passes the load-factor
-  step over the nominal one; 1, the default, is a nominal step, as in the element drivers). A law whose
-  relaxation follows the step's size returns the committed state as f and d_strain tend to zero, so a
-  cut-back brings the step's problem back to the committed equilibrium.
+* ``f`` > 0: the step's size in units of the law's relaxation time. A law with a ``relaxation_time``
+  attribute (not None) states it in the run's time, the load factor of the FE solver (each stage runs from
+  0 to 1) or the share of a segment of an element path; without one (the CPA law's default) the relaxation
+  time is the run's nominal step, so the FE solver passes the load-factor step over the nominal one and
+  the element drivers 1 for each step. :func:`step_fraction` computes f. A law whose relaxation follows the
+  step's size returns the committed state as f and d_strain tend to zero, so a cut-back brings the step's
+  problem back to the committed equilibrium.
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 __all__ = [
+    "step_fraction",
     "Material",
     "CoupledTangent",
     "STATUS_OK",
@@ -190,3 +194,11 @@ def check_steps(steps, name: str = "steps") -> int:
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise ValueError(f"{name} = {steps!r}: must be an integer >= 1")
     return int(steps)
+
+
+def step_fraction(material, dt: float, nominal: float) -> float:
+    """The size of a step of duration ``dt`` in units of ``material``'s relaxation time: ``dt /
+    material.relaxation_time`` when the law has one, else ``dt / nominal`` (a relaxation time of one nominal
+    step). ``dt`` and ``nominal`` are in the run's time (module docstring)."""
+    tau = getattr(material, "relaxation_time", None)
+    return float(dt) / float(nominal if tau is None else tau)

@@ -50,6 +50,12 @@ class Composite:
             raise ValueError(f"laws: nonlocal lengths {sorted(lengths, key=str)} differ; a Composite of gradient-"
                              "enhanced laws needs one length (and no local law among them)")
         self._nonlocal_length = lengths.pop()
+        taus = {getattr(law, "relaxation_time", None) for law in self.laws if getattr(law, "rate_dependent", False)}
+        if len(taus) > 1:
+            raise ValueError(f"laws: relaxation times {sorted(taus, key=str)} differ; one step_fraction goes to every "
+                             "rate-dependent law of a Composite, so they need one relaxation time (or None each: "
+                             "one nominal step)")
+        self._relaxation_time = taus.pop() if taus else None
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{law!r} on {idx.size} points" for law, idx in zip(self.laws, self.index))
@@ -118,6 +124,11 @@ class Composite:
     def rate_dependent(self) -> bool:
         """Any of the laws takes the step's size (``step_fraction``, :attr:`material.CPAModel.rate_dependent`)."""
         return any(getattr(law, "rate_dependent", False) for law in self.laws)
+
+    @property
+    def relaxation_time(self) -> float | None:
+        """The one relaxation time of the :attr:`rate_dependent` laws (:func:`material.base.step_fraction`)."""
+        return self._relaxation_time
 
     def update(self, d_strain, stress, state, d_nonlocal=None, step_fraction: float = 1.0):
         """Each law on its points; ``d_nonlocal`` (gradient-enhanced laws, :mod:`material.base`) is split

@@ -80,6 +80,7 @@ class _Options:
     max_halvings: int = 12
     tol: float = 1e-12
     stabilisation: float | str = 0.0
+    relaxation_time: float | None = None
 
 
 #: The value of ``stabilisation`` that computes each point's mu (:class:`CPAModel`).
@@ -106,18 +107,16 @@ class CPAModel:
         Convergence of the local solver: |R| <= tol (|d_eps| + |sigma_n| / E) and every
         complementarity residual <= tol (dimensionless).
     stabilisation : float or "minimal"
-        mu in [0, 1]: a Perzyna-type viscosity whose relaxation time is one nominal load step. The step
-        equation of a loading plane is etah = eta(kappa_n + dkappa) + h_a dkappa / f, with the floor
-        h_a = mu (w_a / t) G / sigma~_a (mu times the plane's elastic self-coupling at sigma_n) and f the
-        step's size in nominal steps (``step_fraction`` of :meth:`update`; 1 by default and in the element
-        drivers): a hardening of at least h_a / f within the step (``docs/cpa_law.md``, section 4). It
-        makes the step's complementarity problem uniquely solvable where the coupling of non-associated
-        planes near failure has no unique rate solution. The overstress it allows is of the order of the
-        slip of one nominal step, so it vanishes as the nominal steps are refined; a shorter step (a
-        cut-back) relaxes the overstress a longer one left only in proportion to its length, so the
-        update tends to the committed state as the step tends to zero. 0 (the default) solves the
-        thesis's law. ``"minimal"``: each point takes, at the start of each step, the least mu for which
-        the coupling matrix of its planes on their curves is a P-matrix by a sufficient condition (its
+        mu in [0, 1]: a Perzyna-type viscosity. The step equation of a loading plane is
+        etah = eta(kappa_n + dkappa) + h_a dkappa / f, with the floor h_a = mu (w_a / t) G / sigma~_a (mu times
+        the plane's elastic self-coupling at sigma_n) and f the step's size in relaxation times
+        (``step_fraction`` of :meth:`update`): a hardening of at least h_a / f within the step, an overstress
+        h_a tau dkappa/dt (``docs/cpa_law.md``, section 4). It makes the step's complementarity problem
+        uniquely solvable where the coupling of non-associated planes near failure has no unique rate
+        solution. A shorter step (a cut-back) relaxes the overstress a longer one left only in proportion to
+        its length, so the update tends to the committed state as the step tends to zero. 0 (the default)
+        solves the thesis's law. ``"minimal"``: each point takes, at the start of each step, the least mu for
+        which the coupling matrix of its planes on their curves is a P-matrix by a sufficient condition (its
         rate problem has one solution): 0 wherever the thesis's law is uniquely solvable, so the law is
         changed only at the points where it has no unique response (``state["stabilisation"]`` records
         each point's mu). Measured, it does not carry the thesis-sand footings: points lose uniqueness
@@ -125,6 +124,15 @@ class CPAModel:
         (``docs/cpa_law.md``, section 4); 0.1 does. ``state["overstress"]`` records what the floor
         changes: the largest share of a loading plane's mobilised ratio it carries above the hardening
         curve (0 for the thesis's law); compare a run with one at a smaller mu.
+    relaxation_time : float, optional
+        tau > 0 of the stabilisation, in the run's time: the load factor of an FE stage (0 to 1) or the
+        share of a segment of an element path (:func:`material.base.step_fraction`). None (the default):
+        one nominal step of the run, so the viscosity shrinks as the nominal steps are refined and a result
+        mixes the step's error with the viscosity's; with a given tau the run converges, as the steps are
+        refined, to the viscous solution of that tau (measured on the stiff sand's footing: 0.25 % between
+        40, 80 and 160 nominal steps at tau = 1/40, where one nominal step gave 1150.7, 1011.5 and
+        895.8 kPa; ``docs/cpa_law.md``, section 4), and the rate-independent law is its limit tau -> 0.
+        Only with a stabilisation (``stabilisation`` > 0 or "minimal").
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
     threads : int, optional
@@ -146,7 +154,8 @@ class CPAModel:
 
     def __init__(self, params: CPAParameters | str = "ottawa_c109", rule: str = "bazant-oh-33", axes=None, *,
                  maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float | str = 0.0,
-                 replay_dir: str | os.PathLike | None = None, threads: int | None = None, regularise: bool = True,
+                 relaxation_time: float | None = None, replay_dir: str | os.PathLike | None = None,
+                 threads: int | None = None, regularise: bool = True,
                  nonlocal_length: float | None = None, over_nonlocal: float = 2.0):
         from material.planes import integration_rule
 
@@ -161,6 +170,7 @@ class CPAModel:
         if not (0 < float(tol) < 1e-3):
             raise ValueError(f"tol = {tol!r}: allowed 0 < tol < 1e-3")
         stabilisation = _check_stabilisation(stabilisation)
+        relaxation_time = _check_relaxation_time(relaxation_time, stabilisation)
         if nonlocal_length is not None:
             if not (np.isfinite(float(nonlocal_length)) and float(nonlocal_length) > 0.0):
                 raise ValueError(f"nonlocal_length = {nonlocal_length!r}: must be > 0 (m), or None for no gradient")
@@ -175,7 +185,7 @@ class CPAModel:
         self.params = params
         self.rule = rule
         self.axes = default_axes() if axes is None else axes_from_frame(axes)
-        self.options = _Options(int(maxit), int(max_halvings), float(tol), stabilisation)
+        self.options = _Options(int(maxit), int(max_halvings), float(tol), stabilisation, relaxation_time)
         self.replay_dir = None if replay_dir is None else Path(replay_dir)
         self.threads = threads
         self.regularise = bool(regularise)
@@ -202,7 +212,8 @@ class CPAModel:
         """A new law with the same rule, axes and options as this one except those given (``params``,
         ``axes``, or any keyword of the constructor); this law is unchanged."""
         kw = dict(rule=self.rule, maxit=self.options.maxit, max_halvings=self.options.max_halvings,
-                  tol=self.options.tol, stabilisation=self.options.stabilisation, replay_dir=self.replay_dir,
+                  tol=self.options.tol, stabilisation=self.options.stabilisation,
+                  relaxation_time=self.options.relaxation_time, replay_dir=self.replay_dir,
                   threads=self.threads, regularise=self.regularise, nonlocal_length=self._nonlocal_length,
                   over_nonlocal=self.over_nonlocal)
         kw.update(options)
@@ -225,6 +236,12 @@ class CPAModel:
         if self._nonlocal_length is None:
             raise AttributeError("nonlocal_length: this CPA law has no gradient regularisation")
         return self._nonlocal_length
+
+    @property
+    def relaxation_time(self) -> float | None:
+        """tau of the step stabilisation in the run's time, or None: one nominal step (``relaxation_time``
+        of the constructor; :func:`material.base.step_fraction`)."""
+        return self.options.relaxation_time
 
     @property
     def E(self) -> float:
@@ -378,10 +395,10 @@ class CPAModel:
             :class:`material.base.CoupledTangent` and ``state["nonlocal"]`` the end-of-step ebar. Without
             it the law is local (ebar = e, a homogeneous test) and ``state["nonlocal"]`` follows e.
         step_fraction : float > 0
-            The step's size in units of the run's nominal load step (the FE solver passes it to a
-            :attr:`rate_dependent` law; 1 in the element drivers, whose every step is nominal): the step
-            stabilisation's relaxation time is one nominal step. Without the stabilisation it changes
-            nothing.
+            The step's size in units of the stabilisation's relaxation time (:attr:`relaxation_time`, by
+            default one nominal step): the FE solver and the element drivers pass it to a
+            :attr:`rate_dependent` law (:func:`material.base.step_fraction`). Without the stabilisation it
+            changes nothing.
 
         Returns
         -------
@@ -412,7 +429,7 @@ class CPAModel:
         f = float(step_fraction) if np.ndim(step_fraction) == 0 else np.nan
         if not (np.isfinite(f) and f > 0.0):
             raise ValueError(f"step_fraction = {step_fraction!r}: allowed a finite number > 0 (the step's size in "
-                             f"nominal steps)")
+                             f"relaxation times)")
         new_sig, new_state, tan = self._integrate(de, sig, state, tangent, d_nonlocal, f)
         failed = np.flatnonzero(new_state["status"] == STATUS_FAILED)
         if failed.size:
@@ -609,6 +626,24 @@ class CPAModel:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **{k: v for k, v in self.last_failure.items() if k != "path"})
         return path
+
+
+def _check_relaxation_time(value, stabilisation) -> float | None:
+    """``relaxation_time`` of :class:`CPAModel`: None or a finite number > 0, given with a stabilisation."""
+    if value is None:
+        return None
+    try:
+        tau = float(value)
+    except (TypeError, ValueError):
+        tau = np.nan
+    if isinstance(value, bool) or not (np.isfinite(tau) and tau > 0.0):
+        raise ValueError(f"relaxation_time = {value!r}: allowed a finite number > 0 (in the run's time: the load "
+                         "factor of an FE stage runs from 0 to 1), or None for one nominal step")
+    if stabilisation == 0.0:
+        raise ValueError(f"relaxation_time = {value!r}: the relaxation time of the step stabilisation, but "
+                         "stabilisation = 0 (the thesis's rate-independent law has none); allowed with "
+                         "stabilisation > 0 or 'minimal'")
+    return tau
 
 
 def _check_stabilisation(value) -> float | str:

@@ -44,7 +44,7 @@ from pathlib import Path as _FilePath
 
 import numpy as np
 
-from material.base import STATUS_FAILED, check_positive, check_steps, copy_state
+from material.base import STATUS_FAILED, check_positive, check_steps, copy_state, step_fraction
 from material.results import COMPONENTS, ElementResult, standard_columns
 from material.table import TableWriter, read_table
 from material.tensors import MANDEL_WEIGHTS, from_mandel, from_mandel_matrix, to_mandel, to_mandel_matrix
@@ -389,25 +389,37 @@ class _Point:
     tangent: np.ndarray  # (6, 6) Mandel tangent of the last converged update
 
 
-def _mandel_update(model, d_strain, stress, state):
+def _mandel_update(model, d_strain, stress, state, inputs=None):
     """One update of the point with its tangent as a (6, 6) Mandel matrix: a law that computes it in
-    Mandel form (``"mandel" in model.TANGENTS``, the CPA law) gives it as it is, without a round trip."""
+    Mandel form (``"mandel" in model.TANGENTS``, the CPA law) gives it as it is, without a round trip.
+    ``inputs``: the law's other inputs (:func:`_rate_inputs`)."""
+    inputs = inputs or {}
     if "mandel" in getattr(model, "TANGENTS", ()):
-        stress, state, tangent = model.update(d_strain, stress, state, tangent="mandel")
+        stress, state, tangent = model.update(d_strain, stress, state, tangent="mandel", **inputs)
         return stress, state, np.asarray(tangent)[0]
-    stress, state, tangent = model.update(d_strain, stress, state)
+    stress, state, tangent = model.update(d_strain, stress, state, **inputs)
     return stress, state, to_mandel_matrix(np.asarray(tangent)[0])
 
 
-def _update(model, point: _Point, d_eps: np.ndarray):
+def _rate_inputs(model, seg: Segment, n_sub: int) -> dict:
+    """The step's size for a :attr:`rate_dependent` law (:func:`material.base.step_fraction`): a segment's
+    time runs from 0 to 1 over its ``steps``, so a step lasts 1 / steps, a nominal step (1 for a law
+    without a ``relaxation_time``), and each of its ``n_sub`` sub-steps after a cut-back 1 / n_sub of that."""
+    if not getattr(model, "rate_dependent", False):
+        return {}
+    nominal = 1.0 / seg.steps
+    return {"step_fraction": step_fraction(model, nominal / n_sub, nominal)}
+
+
+def _update(model, point: _Point, d_eps: np.ndarray, inputs=None):
     stress, state, tangent = _mandel_update(model, from_mandel(d_eps)[None], from_mandel(point.stress)[None],
-                                            point.state)
+                                            point.state, inputs)
     failed = int(np.asarray(state["status"])[0]) == STATUS_FAILED
     return to_mandel(stress[0]), state, tangent, failed
 
 
-def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int):
-    """Newton for one step from ``point`` to the conditions ``c_end``.
+def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: float, max_iter: int, inputs=None):
+    """Newton for one step from ``point`` to the conditions ``c_end`` (``inputs``: :func:`_rate_inputs`).
 
     Returns (_Point, iterations, stress residual [kPa], None) on convergence, else (None, None, reason).
     """
@@ -444,7 +456,7 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
         # backtracking: if the law cannot integrate the trial increment, shorten the correction
         for _ in range(_BACKTRACKS + 1):
             trial = d_eps + dx[:6]
-            new = _update(model, point, trial)
+            new = _update(model, point, trial, inputs)
             if not new[3] and np.isfinite(new[0]).all():
                 break
             dx = 0.5 * dx
@@ -612,8 +624,10 @@ def _step_with_cutbacks(model, point, seg, goal, tol, max_iter, max_cuts):
     for cuts in range(max_cuts + 1):
         n_sub = 2**cuts
         p, total_its, worst = point, 0, 0.0
+        inputs = _rate_inputs(model, seg, n_sub)
         for j in range(1, n_sub + 1):
-            new, its, info = _solve_step(model, p, seg, c_start + (goal - c_start) * (j / n_sub), tol, max_iter)
+            new, its, info = _solve_step(model, p, seg, c_start + (goal - c_start) * (j / n_sub), tol, max_iter,
+                                         inputs)
             if new is None:
                 reason = info
                 break

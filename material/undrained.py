@@ -56,6 +56,11 @@ class Undrained:
         """The wrapped law takes the step's size (``step_fraction``, :attr:`material.CPAModel.rate_dependent`)."""
         return bool(getattr(self.law, "rate_dependent", False))
 
+    @property
+    def relaxation_time(self) -> float | None:
+        """The wrapped law's (:func:`material.base.step_fraction`)."""
+        return getattr(self.law, "relaxation_time", None)
+
     def update(self, d_strain, stress, state, step_fraction: float = 1.0):
         de, sig = check_batch(d_strain, stress)
         u_n = np.asarray(state["pore_pressure_kPa"], dtype=float)

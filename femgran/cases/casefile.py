@@ -13,6 +13,7 @@ Format (four tables, each checked against the dataclass it fills)::
     rule = "bazant-oh-33"         # cpa: integration rule of the planes
     set = { beta = 5.0 }          # cpa: parameters to change (CPAParameters.replace)
     stabilisation = 0.1           # cpa: the step stabilisation of CPAModel (default 0: the thesis's law)
+    relaxation_time = 0.025       # cpa: its relaxation time in load factor (default: one nominal step)
     nonlocal_length = 0.006       # cpa with softening: the implicit gradient's length l [m] (not the crack band)
     # von_mises: E_kPa, nu, yield_stress_kPa, hardening_kPa (and length_m, over_nonlocal: the gradient law)
     # drucker_prager: E_kPa, nu, cohesion_kPa, friction_deg, dilation_deg, match, hardening_kPa

@@ -43,6 +43,8 @@ def _material(args) -> dict:
     if args.law == "cpa":
         spec = {"law": "cpa", "set": parse_set(args.set), "stabilisation": args.stabilisation}
         spec.update({"parameters": args.params} if args.params else {"preset": args.preset})
+        if args.relaxation_time is not None:
+            spec["relaxation_time"] = args.relaxation_time
         if args.nonlocal_length is not None:
             spec["nonlocal_length"] = args.nonlocal_length
         if args.rule is not None:
@@ -78,6 +80,10 @@ def _material_flags(p):
                    help="CPA step stabilisation (default 0: the thesis's law; 0.1 lets the non-associated sand "
                         "carry a footing to its end; 'minimal': each point's least MU for a unique rate problem, "
                         "docs/cpa_law.md section 4)")
+    g.add_argument("--relaxation-time", type=float, default=None, metavar="TAU",
+                   help="relaxation time of the CPA step stabilisation in load factor (a stage runs from 0 to 1; "
+                        "default: one nominal step). With TAU the result converges as --steps grows; without it "
+                        "the viscosity shrinks with the step (docs/cpa_law.md section 4)")
     from material.planes import available_rules
 
     g.add_argument("--rule", choices=sorted(available_rules()), default=None,

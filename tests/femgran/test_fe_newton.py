@@ -181,6 +181,29 @@ def test_a_rate_dependent_law_gets_the_step_size_in_nominal_steps():
     assert NewtonSolver(d, _StepLimited(law.inner, 1.0), bcs).run(2).completed  # no step_fraction keyword
 
 
+def test_a_rate_dependent_law_with_a_relaxation_time_gets_the_step_in_it():
+    """A law with a ``relaxation_time`` tau gets each step's load-factor size over tau, whatever the
+    nominal step (material.base.step_fraction); the Composite and the undrained wrapper pass it on, and a
+    Composite whose rate-dependent laws have different relaxation times is refused."""
+    from material.composite import Composite
+    from material.undrained import Undrained
+
+    d, bcs = _plastic_cube()
+    law = _RateRecorder(material.VonMises(1e4, 0.3, 20.0, 200.0), 2e-3)
+    law.relaxation_time = 0.1
+    sol = NewtonSolver(d, law, bcs).run(4)  # nominal step 0.25: 2.5 relaxation times
+    assert sol.completed and sol.history["cutbacks"].max() >= 1
+    f = np.array(law.fractions)
+    assert f.max() == pytest.approx(2.5) and f.min() <= 1.25
+    assert Undrained(law, 1e5).relaxation_time == 0.1
+    n = d.n_points
+    assert Composite([law, law.inner], np.zeros(n, dtype=int)).relaxation_time == 0.1
+    other = _RateRecorder(law.inner, 2e-3)
+    other.relaxation_time = 0.2
+    with pytest.raises(ValueError, match=r"laws: relaxation times \[0.1, 0.2\] differ"):
+        Composite([law, other], np.zeros(n, dtype=int))
+
+
 def test_clean_stop_keeps_the_converged_steps(tmp_path):
     d, bcs = _plastic_cube()
     vm = material.VonMises(1e4, 0.3, 20.0, 200.0)

@@ -755,6 +755,15 @@ def test_bad_construction_is_named():
         with pytest.raises(ValueError, match=f"stabilisation = {bad!r}: allowed a number 0 <= mu <= 1 or 'minimal'"):
             CPAModel("ottawa_c109", stabilisation=bad)
     assert CPAModel("ottawa_c109", stabilisation=" Minimal").options.stabilisation == "minimal"
+    for bad in (0.0, -0.5, float("nan"), float("inf"), "soon", True):
+        with pytest.raises(ValueError, match=f"relaxation_time = {bad!r}: allowed a finite number > 0"):
+            CPAModel("ottawa_c109", stabilisation=0.1, relaxation_time=bad)
+    with pytest.raises(ValueError, match="relaxation_time = 0.1: the relaxation time of the step stabilisation, but "
+                                         "stabilisation = 0"):
+        CPAModel("ottawa_c109", relaxation_time=0.1)
+    model = CPAModel("ottawa_c109", stabilisation="minimal", relaxation_time=0.05)
+    assert model.relaxation_time == 0.05 and model.replace(tol=1e-11).relaxation_time == 0.05
+    assert CPAModel("ottawa_c109", stabilisation=0.1).relaxation_time is None
 
 
 def test_general_coaxial_law_changes_the_response_and_reduces_to_the_linear_one():

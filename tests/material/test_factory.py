@@ -31,6 +31,8 @@ def test_a_material_object_is_used_as_it_is_and_alpha_must_match_its_axes():
         make_material(model, alpha_deg=30.0, plane_strain=False)  # same angle, other frame
     with pytest.raises(ValueError, match=r"stabilisation = 0.1: applies to a CPA law built from a preset"):
         make_material(model, stabilisation=0.1)
+    with pytest.raises(ValueError, match=r"relaxation_time = 0.05: applies to a CPA law built from a preset"):
+        make_material(model, relaxation_time=0.05)
     dp = DruckerPrager(30000, 0.3, cohesion_kPa=1.0, friction_deg=30.0)
     assert make_material(dp, alpha_deg=45.0) is dp  # no axes: alpha is only recorded
 
@@ -67,6 +69,8 @@ def test_a_mapping_is_the_material_table_of_a_case_file(tmp_path):
     model = make_material({"preset": "ottawa_c109", "stabilisation": 0.1, "set": {"beta": 5.0, "b": 0.1}},
                           alpha_deg=30.0, plane_strain=True)
     assert model.options.stabilisation == 0.1 and model.params.beta == 5.0 and model.params.b == (0.1,)
+    assert model.relaxation_time is None
+    assert make_material({"stabilisation": 0.1, "relaxation_time": 0.025}).relaxation_time == 0.025
     np.testing.assert_allclose(model.axes[:, 1], plane_strain_axes(30.0)[:, 1])
     dp = make_material({"law": "drucker_prager", "E_kPa": 3e4, "nu": 0.3, "cohesion_kPa": 1.0, "friction_deg": 30.0})
     assert isinstance(dp, DruckerPrager)
