@@ -217,7 +217,7 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None, grad
         k_hat = kap_n[strong][post] + dk[strong][post] + c0 - m * S
         eta[post] = law.softening(k_hat, ef[strong][post], soft)
         extra = [(S - np.sum(dk[strong][post])) / p.A]
-    v = eta + mu[strong] * dk[strong] - ratio[strong]
+    v = (eta + mu[strong] * dk[strong] - ratio[strong]) / (1 + mu[strong] * p.A)
     phi = _fb(u, v)
     phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
     return np.concatenate([_six(R), phi, phi0, np.asarray(extra)]), dk

@@ -574,6 +574,25 @@ def test_step_stabilisation_relaxes_in_proportion_to_the_step_so_the_update_is_c
             model.update(DE[None], sig, st, step_fraction=bad)
 
 
+def test_a_short_step_of_a_strongly_overstressed_point_converges_with_its_large_floor():
+    """A shallow point of the stiff sand's footing (E = 60 MPa, stabilisation 0.1 with a relaxation time of
+    1/40: 24 planes loading at 15 times their failure ratio, 2.9 kPa mean stress). A short step makes the
+    floor h / f huge, and the complementarity's v = eta + h dkappa - etah then has to be scaled by
+    1 + h A to be computable to Phi's tolerance: without it the local Newton stalled at Phi ~ 1e-11 and the
+    point failed for every f <= 1e-6 (its footing run stopped). Each short step now converges in a few
+    iterations and agrees with the plain-numpy reference."""
+    model, d, state = _replay_file("overstressed_shallow_point.npz")
+    model = model.replace(stabilisation=0.1)
+    assert state["mobilised_ratio"][0] > 14.0 and state["loading"][0].sum() == 24
+    for f in (1e-5, 1e-6, 1e-7, 1e-8):
+        s, st, _ = model.update(d["d_strain"], d["stress"], state, step_fraction=f)
+        assert st["status"][0] == STATUS_OK and st["iterations"][0] <= 12, (f, st["iterations"])
+    s, st, D = model.update(d["d_strain"], d["stress"], state, step_fraction=1e-6)
+    s_ref, _, _, D_ref = update_point(model, d["d_strain"][0], d["stress"][0], state, step_fraction=1e-6)
+    assert np.abs(s[0] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
+    assert np.abs(D[0] - D_ref).max() <= 1e-6 * np.abs(D_ref).max()
+
+
 def _overstress_of_committed_state(model, stress, state):
     """The share of each loading plane's mobilised ratio above its hardening curve, from the committed
     stress and slips alone (the public ratios and strengths, the hyperbola 2.16): max_a (etah_a - eta_a) / etah_a."""
