@@ -44,7 +44,8 @@ viscosity) also take the step's size::
   attribute (not None) states it in the run's time, the load factor of the FE solver (each stage runs from
   0 to 1) or the share of a segment of an element path; without one (the CPA law's default) the relaxation
   time is the run's nominal step, so the FE solver passes the load-factor step over the nominal one and
-  the element drivers 1 for each step. :func:`step_fraction` computes f. A law whose relaxation follows the
+  the element drivers 1 for each step (1 / n for each of the n sub-steps of a step they cut back).
+  :func:`step_fraction` computes f. A law whose relaxation follows the
   step's size returns the committed state as f and d_strain tend to zero, so a cut-back brings the step's
   problem back to the committed equilibrium.
 """
