@@ -24,6 +24,22 @@ def test_fe_03_footing_alpha(tmp_path, load_example):
     assert (tmp_path / "capacity_vs_alpha.png").is_file()
 
 
+def test_fe_03_runs_a_series_per_relaxation_time(tmp_path, load_example):
+    """--relaxation-times: one series per tau with max(steps, 1/tau) steps; results keyed (tau, alpha), and
+    tau = 0.05 on 20 quick steps is one nominal step, so it gives the default run's pressure."""
+    from material.table import read_table
+
+    example = load_example("fe_03_footing_alpha")
+    result = example.main(["--quick", "--alphas", "90", "--relaxation-times", "0.05", "0.025",
+                           "--out", str(tmp_path)])
+    default = example.main(["--quick", "--alphas", "90", "--out", str(tmp_path / "default")])
+    assert set(result) == {(0.05, 90.0), (0.025, 90.0)}
+    assert result[0.05, 90.0] == pytest.approx(default[90.0], rel=1e-9)
+    table = read_table(tmp_path / "summary.csv")
+    assert table["steps"][0] >= 20 and table["steps"][1] >= 40 and list(table["relaxation_time"]) == [0.05, 0.025]
+    assert result[0.025, 90.0] < result[0.05, 90.0]  # less viscosity, less overstress
+
+
 def test_fe_04_biaxial_meshes(tmp_path, load_example):
     sols = load_example("fe_04_biaxial_meshes").main(["--quick", "--out", str(tmp_path)])
     # rough platens, E = 60 MPa: the peak friction angle of the specimen (measured 45.8 deg on this mesh
