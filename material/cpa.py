@@ -129,9 +129,9 @@ class CPAModel:
         share of a segment of an element path (:func:`material.base.step_fraction`). None (the default):
         one nominal step of the run, so the viscosity shrinks as the nominal steps are refined and a result
         mixes the step's error with the viscosity's; with a given tau the run converges, as the steps are
-        refined, to the viscous solution of that tau (measured on the stiff sand's footing: 0.25 % between
-        40, 80 and 160 nominal steps at tau = 1/40, where one nominal step gave 1150.7, 1011.5 and
-        895.8 kPa; ``docs/cpa_law.md``, section 4), and the rate-independent law is its limit tau -> 0.
+        refined, to the viscous solution of that tau (measured on the stiff sand's footing: 1150.7, 1149.4
+        and 1148.0 kPa with 40, 80 and 160 nominal steps at tau = 1/40, where one nominal step gave 1150.7,
+        1011.5 and 899.2 kPa; ``docs/cpa_law.md``, section 4), and the rate-independent law is its limit tau -> 0.
         Only with a stabilisation (``stabilisation`` > 0 or "minimal").
     replay_dir : path, optional
         Where the inputs of failed points are written (one ``.npz`` per failing call) for :func:`replay`.
