@@ -20,7 +20,7 @@ the solution Newton lands on from the tangent predictor, and a finer first step 
 (measured at a point of the alpha = 0 footing: first fractions 1 to 1/32 give one answer, 1/64 to 1/1024
 a branch that folds at 0.016 of the increment, 1/4096 the first answer again). It is still a
 deterministic function of the step's inputs, but not a continuous one there.
-With the step stabilisation the floor of a plane over the fraction lam of a step of f nominal steps is
+With the step stabilisation the floor of a plane over the fraction lam of a step of f relaxation times is
 floor0 / (lam f): it grows without bound as lam -> 0, so the branch starts at the committed state even
 when that state lies above the planes' curves (the overstress of earlier steps), and the update tends to
 the committed state as the step does.
@@ -151,7 +151,7 @@ Law = namedtuple("Law", [
 ])
 
 #: Options of the local solver.
-#: ``step``: the size of this step in units of the run's nominal step (the step stabilisation's relaxation time).
+#: ``step``: the size of this step in relaxation times of the step stabilisation (one nominal step by default).
 #: ``minimal``: the floor's mu of each point is the least that makes its rate problem uniquely solvable
 #: (:func:`_uniqueness_floor`) instead of ``stabilisation``.
 #: ``locate``: where the branch ends within the step, the halvings that locate its limit point (0: the point
@@ -233,7 +233,7 @@ Work = namedtuple("Work", [
     "eta_f", "deta_f", "shift",            # (M,) strengths, their slope in x_a, shift c_a / eta_f,a + c_apex
     "strong", "select",       # (M,) bool, see Point
     "floor",                  # (M,) see Point
-    "floor0",                 # (M,) the floor of a nominal step, mu (w/t) G / sigma~ at sigma_n
+    "floor0",                 # (M,) the floor of one relaxation time, mu (w/t) G / sigma~ at sigma_n
     "post",                   # (M,) bool, see Point
     "J", "J8",                # condensed Newton matrix (7, 7), and (_NSYS, _NSYS) with the gradient's unknown
                               # (two contiguous arrays: the LU on a 7 x 7 view of the larger one was 2-3 % slower)

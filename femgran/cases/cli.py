@@ -304,7 +304,8 @@ def _overshoot_note(log, rows) -> str:
 
 def _print_zero_step_drift(problem, checkpoint) -> None:
     """How far the material moves the checkpoint's committed stress for a zero strain increment, over a
-    nominal step and over the smallest step the cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`);
+    relaxation time of the law (one nominal step unless it has its own) and over the smallest step the
+    cut-backs reach (:func:`femgran.diagnostics.zero_step_drift`);
     a point counts as moved above 1e-9 of its largest stress component (the local solver converges to 1e-12
     of the point's strain scale, so a consistent law stays below it: the thesis sand's footing, 2e-13)."""
     from femgran import checkpoint as ck
@@ -315,7 +316,7 @@ def _print_zero_step_drift(problem, checkpoint) -> None:
     inputs = problem.disc.point_inputs(np.zeros(problem.disc.ndofs))
     for f, rel in zero_step_drift(problem.material, arrays["stress"], state, inputs).items():
         moved = rel > 1e-9
-        print(f"  a zero strain increment over {f:g} nominal step(s) moves {int(moved.sum())} of {rel.size} points' "
+        print(f"  a zero strain increment over {f:g} relaxation time(s) moves {int(moved.sum())} of {rel.size} points' "
               f"stress, by up to {rel.max():.2g} of their largest component"
               + ("" if f == 1.0 or not moved.any() else
                  " (the committed state is not the step problem's solution as the step vanishes: cut-backs cannot "

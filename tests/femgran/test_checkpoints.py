@@ -110,7 +110,7 @@ def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     # the stiff sand's first step misses the tangent's prediction at dozens of points, not at a pair
     missed = re.search(r"(\d+) full Newton step\(s\) rejected, half of the missed stress at (\d+)-(\d+) point", text)
     assert missed and int(missed[1]) >= 1 and int(missed[2]) >= 10
-    assert "a zero strain increment over 0.00390625 nominal step(s) moves 0 of" in text  # the thesis's law
+    assert "a zero strain increment over 0.00390625 relaxation time(s) moves 0 of" in text  # the thesis's law
     assert "the rate problem of every one of the" in text or "the rate problem has no unique solution" in text
     assert "elliptic at every point (least indicator" in text or "has lost ellipticity (Rice's condition" in text
     replayed = json.loads((out / "replay" / "status.json").read_text())
