@@ -83,3 +83,10 @@ def test_the_stabilisation_flag_takes_a_number_or_minimal(capsys):
     with pytest.raises(SystemExit):
         parser.parse_args(["footing", "--stabilisation", "maximal"])
     assert "'maximal': allowed a number 0 <= MU <= 1 or 'minimal'" in capsys.readouterr().err
+    # --relaxation-time: the stabilisation's own relaxation time reaches the law; without a stabilisation the
+    # law refuses it, naming the key
+    spec = _material(parser.parse_args(["footing", "--stabilisation", "0.1", "--relaxation-time", "0.025"]))
+    assert spec["relaxation_time"] == 0.025 and build_problem(case, spec).material.relaxation_time == 0.025
+    assert "relaxation_time" not in _material(parser.parse_args(["footing", "--stabilisation", "0.1"]))
+    with pytest.raises(ValueError, match="relaxation_time = 0.025: the relaxation time of the step stabilisation"):
+        build_problem(case, _material(parser.parse_args(["footing", "--relaxation-time", "0.025"])))
