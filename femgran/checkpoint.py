@@ -109,13 +109,15 @@ def load(json_path) -> tuple[dict, dict]:
 
 
 def identity_changes(saved: dict, now: dict, prefix: str = "") -> list[str]:
-    """The keys (dotted) whose values differ between two parameter records."""
+    """The keys (dotted) whose values differ between two parameter records. A key that only one record has,
+    with the value None in it, is no change: an option a later version added at its default, which is the
+    earlier behaviour (e.g. ``material.options.relaxation_time`` of the CPA law), so its checkpoints resume."""
     changed = []
     for key in sorted(set(saved) | set(now)):
         a, b = saved.get(key, "<absent>"), now.get(key, "<absent>")
         if isinstance(a, dict) and isinstance(b, dict):
             changed += identity_changes(a, b, f"{prefix}{key}.")
-        elif a != b:
+        elif a != b and not (key not in saved and b is None or key not in now and a is None):
             changed.append(f"{prefix}{key}: {a!r} -> {b!r}")
     return changed
 

@@ -77,6 +77,19 @@ def test_checkpoints_every_n_steps_keep_the_last_k_and_refuse_changed_inputs(tmp
         run(CASE, SAND, output=Output(tmp_path / "empty"), resume=True)
 
 
+def test_an_option_a_later_version_added_at_its_default_does_not_block_a_resume():
+    """A checkpoint written before an option existed resumes when the option is at its default None (the
+    earlier behaviour); any other value, or a change of an existing key, is refused."""
+    from femgran.checkpoint import identity_changes
+
+    old = {"material": {"options": {"stabilisation": 0.1}}, "steps": 40}
+    assert identity_changes(old, {"material": {"options": {"stabilisation": 0.1, "relaxation_time": None}},
+                                  "steps": 40}) == []
+    assert identity_changes(old, {"material": {"options": {"stabilisation": 0.1, "relaxation_time": 0.025}},
+                                  "steps": 40}) == ["material.options.relaxation_time: '<absent>' -> 0.025"]
+    assert identity_changes({"steps": None}, {"steps": 40}) == ["steps: None -> 40"]
+
+
 def test_the_command_line_interrupts_with_a_message_and_resumes(tmp_path, monkeypatch, capsys):
     from femgran.cli import main
 
