@@ -37,6 +37,18 @@ A study file (TOML) says the same::
     # alpha_deg = 0
     # settlement_m = 0.05
 
+A series of relaxation times of the CPA law's step stabilisation, each run with as many steps as its
+relaxation time needs (``docs/cpa_law.md``, section 4), is a list of points::
+
+    [fixed]
+    "material.stabilisation" = 0.1
+    [[points]]
+    "material.relaxation_time" = 0.00625
+    steps = 160
+    [[points]]
+    "material.relaxation_time" = 0.0015625
+    steps = 640
+
 Each run writes into ``OUT/<key>`` (``alpha_deg_30``...); ``OUT/summary.csv`` and ``OUT/sweep.json``
 gather the runs as they finish; the same command again completes only the runs not yet complete.
 """
