@@ -295,8 +295,9 @@ def solver_kinks_along(solver, du, ddu, s) -> dict[str, np.ndarray]:
 def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2.0 ** -8)) -> dict[float, np.ndarray]:
     """The stress change of a zero strain increment from the committed (stress, state), relative to each
     point's largest stress component: (N,) for each step size in ``step_fractions`` (in the law's relaxation
-    times, :func:`material.base.step_fraction`; used only by a ``rate_dependent`` law). ``inputs``: the material's other inputs for a zero increment
-    (a coupled discretisation's ``point_inputs`` of a zero displacement, e.g. ``d_nonlocal`` = 0).
+    times, :func:`material.base.step_fraction`; used only by a ``rate_dependent`` law). ``inputs``: the
+    material's other inputs for a zero increment (a coupled discretisation's ``point_inputs`` of a zero
+    displacement, e.g. ``d_nonlocal`` = 0).
 
     A law whose update is continuous at the committed state gives round-off for every size; a step
     stabilisation with a relaxation time of the current step (instead of a fixed one) gives a drift that
