@@ -272,6 +272,28 @@ def test_footing_reports_the_step_stabilisations_overstress(tmp_path):
     assert "stabilisation_overstress_p99" not in plain.extra
 
 
+def test_a_stabilised_footing_converges_in_the_step_with_a_relaxation_time_of_its_own():
+    """The stiff sand's footing (E = 60 MPa, mu = 0.1) on the coarse mesh: with the relaxation time one
+    nominal step, 10 and 20 steps differ by 11 % (the viscosity shrinks with the step); with tau = 0.1 fixed
+    the pressure at 0.1 B converges to the viscous solution at first order in the step (measured 1553.7,
+    1529.4, 1518.5 kPa with 10, 20, 40 steps; nominal: 1553.7, 1382.2), and 10 steps of tau = 0.1 are the
+    nominal run."""
+    def pressure(steps, tau):
+        mat = {"preset": "ottawa_c109", "set": {"E": 60000.0}, "stabilisation": 0.1}
+        if tau is not None:
+            mat["relaxation_time"] = tau
+        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=steps, resolution=1, plots=False)
+        assert sol.completed, sol.stop_reason
+        return sol.extra["pressure_at_10pct_kPa"]
+
+    nominal = {n: pressure(n, None) for n in (10, 20)}
+    fixed = {n: pressure(n, 0.1) for n in (10, 20, 40)}
+    assert fixed[10] == pytest.approx(nominal[10], rel=1e-9)
+    assert nominal[20] < 0.92 * nominal[10]
+    assert abs(fixed[20] - fixed[10]) < 0.02 * fixed[10]
+    assert abs(fixed[40] - fixed[20]) < 0.6 * abs(fixed[20] - fixed[10])
+
+
 def test_footing_summary_says_where_the_tangent_has_lost_ellipticity(tmp_path):
     """Rice's condition on the committed tangent at the end of a run (``non_elliptic_points``). The thesis
     sand (non-associated flow) loses it under the footing while it still hardens: no point at s = 0.01 B,
