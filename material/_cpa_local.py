@@ -34,14 +34,25 @@ Unknowns and equations of the semismooth Newton method
   (measured: a Newton on (sigma, dkappa) stalls on such planes, whose slip direction turns fast). Its
   stress must stay below the barrier etah < zeta eta_f.
 * A *strong* plane (kappa_n > A, or past the peak of a softening law) keeps dkappa as an unknown with
-  the Fischer-Burmeister equation Phi(dkappa/A, (eta + h dkappa - etah) / (1 + h A)) = 0,
-  Phi(u, v) = u + v - sqrt(u^2 + v^2), which holds iff the complementarity does; near failure
-  kappa(etah) has a pole but eta(kappa) does not. h is the step stabilisation's floor (0 for the thesis's
-  law). Dividing by 1 + h A keeps v at the scale the tolerance on Phi assumes: the floor grows as 1 / (lam f)
-  for short steps, and v without the division could not be computed to that tolerance (measured on a
-  shallow point of the stiff sand's footing, 24 planes loading at 15 times their failure ratio: with
-  f = 1e-6 Phi stalled at 1e-11 for 150 iterations and the point failed for a strain increment of 5e-8;
-  with the division it converges in 7, at f = 1e-5 to 1e-8 alike).
+  the Fischer-Burmeister equation Phi(dkappa/A, v) = 0, Phi(u, v) = u + v - sqrt(u^2 + v^2), which holds
+  iff the complementarity does (near failure kappa(etah) has a pole but eta(kappa) does not), and its
+  overstress in the traction form
+
+      v = (sigma~ (eta + h dkappa) - T) / (sigma~_n (1 + h A))  =  (sigma~ / sigma~_n) (eta + h dkappa - etah) / (1 + h A),
+
+  h the step stabilisation's floor (0 for the thesis's law), sigma~_n the plane's shifted normal stress at
+  sigma_n. Both factors are positive constants or positive functions of the stress, so the solution is
+  that of the ratio form eta + h dkappa - etah, and so is the tangent (they multiply v = 0 where the
+  plane loads); only the Newton iterates differ. The traction form is affine in (sigma~, T) for a given
+  slip, where the ratio T / sigma~ is a quotient whose linearisation fails when sigma~ changes by a large
+  factor within the step (measured on a shallow point of the stiff sand's footing, 24 planes loading at
+  15 times their failure ratio, relaxing over f = 1e-3 to 0.1 relaxation times: 185-385 local iterations
+  with 5-12 halvings in the ratio form, the line search creeping at 2^-4 to 2^-13 of the Newton step, and
+  a failure at f = 1; 7-10 iterations without a halving in the traction form, 40 with 2 at f = 1).
+  Dividing by 1 + h A keeps v at the scale the tolerance on Phi assumes: the floor grows as 1 / (lam f)
+  for short steps, and v without the division could not be computed to that tolerance (measured on the
+  same point: with f = 1e-6 Phi stalled at 1e-11 for 150 iterations and the point failed for a strain
+  increment of 5e-8; with the division it converges in 7 to 14, at f = 1e-5 to 1e-8 alike).
 * The cut-off: Phi(dlambda, -p/K) = 0.
 Which planes are strong depends on the committed kappa_n only, so it is part of the definition of the
 equations, not of the iteration. The strong slips are eliminated from each linearised system plane by
@@ -207,7 +218,11 @@ _NG = 12
 #: on the plane law.
 (_P_ST, _P_RATIO, _P_INV_ST, _P_INV_T, _P_S_T, _P_DIL, _P_DWC, _P_SX, _P_SY, _P_SZ,
  _P_SLIP, _P_CB, _P_KP, _P_ETA, _P_ALPHA, _P_GAMMA) = range(16)
-_NP = 16
+#: ... and one row that is constant during a point's solution: the inverse of the plane's shifted normal
+#: stress at sigma_n, the unit of a strong plane's overstress in the traction form (:func:`evaluate`); set by
+#: :func:`point_update`, never written by :func:`evaluate`.
+_P_INV_ST0 = 16
+_NP = 17
 #: Rows of the workspace ``dirs`` array: m_a, b_a, Mandel(sym(s (x) n)), Mandel(sym(r (x) n)) (6 rows each).
 _D_M, _D_B, _D_SN, _D_RN = 0, 6, 12, 18
 _ND = 24
@@ -512,9 +527,13 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
                                              law.residual)
             else:
                 eta, deta = hardening(k, ef, law.zeta, A, law.kstar, pt.soft, law.residual)  # (2.16)
-            sv = 1.0 + h * A  # the overstress's scale: 1, or the floor's over a slip A where it is larger
-            phi, (pu, pv) = _fb(dk[a] / A, (eta + h * dk[a] - ratio) / sv, pt.select[a])
-            pv = pv / sv
+            # the overstress in the traction form, (sigma~ (eta + h dkappa) - T) / sigma~_n, over the scale
+            # sv = 1 + h A (1, or the floor's share over a slip A where it is larger)
+            sv = 1.0 + h * A
+            sc = sigma_t * plane[_P_INV_ST0, a] / sv
+            level = eta + h * dk[a]
+            phi, (pu, pv) = _fb(dk[a] / A, sc * (level - ratio), pt.select[a])
+            pv = pv * sc
             phi2 += phi * phi
             phimax = max(phimax, abs(phi))
             slip = dk[a]
@@ -529,6 +548,7 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
                 post_alpha += alpha
                 post_gamma += gamma
         else:
+            level = ratio  # (a weak plane's equation is in the ratio: its slip is a function of the stress)
             if h == 0.0 and not ratio < ratio_barrier(ef, law.zeta, pt.soft) * (1.0 - 1e-12):
                 return False, np.inf, np.inf, np.inf, np.inf
             slip, kp, eta = slip_of_ratio(ratio, kn, ef, law.zeta, A, h * A)  # (2.16) inverted
@@ -552,7 +572,9 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
         plane[_P_ALPHA, a] = alpha
         plane[_P_GAMMA, a] = gamma
         # the plane's terms in R (2.9) and the Newton system, in the span of sn, rn, nn:
-        # J += wt [slip d m / d sigma + cb m (x) b], b = (s_t sn + etah nn) / sigma~,
+        # J += wt [slip d m / d sigma + cb m (x) b'], b' = (s_t sn + level nn) / sigma~ the derivative of the
+        # plane's equation in the stress (b = d etah / d sigma for a weak plane, level = etah; in the traction
+        # form of a strong plane level = eta + h dkappa, and b' = b at its solution where it loads),
         # d m / d sigma = ((b_r / T)^2 sn (x) sn + rn (x) rn) / T (the slip direction turning)
         #                 + nn (x) (b + eta_c w' nn)
         wt = pd.wt[a] if (slip != 0.0 or cb != 0.0) else 0.0  # an elastic plane: no flow, no terms
@@ -563,8 +585,9 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
         f_n = slip + cb * plane[_P_DIL, a]  # of nn
         cf[_C_SS, a] = wt * (slip * b_r * b_r * inv_T * inv_T * inv_T + f_s * s_t * inv_st)
         cf[_C_NS, a] = wt * f_n * s_t * inv_st
-        cf[_C_SN, a] = wt * f_s * ratio * inv_st
-        cf[_C_NN, a] = wt * (f_n * ratio * inv_st + slip * eta_c * ef * plane[_P_DWC, a])
+        cf[_C_SN, a] = wt * f_s * level * inv_st
+        cf[_C_NN, a] = wt * ((slip * ratio + cb * plane[_P_DIL, a] * level) * inv_st
+                             + slip * eta_c * ef * plane[_P_DWC, a])
         cf[_C_RR, a] = wt * slip * inv_T
         cf[_C_R, a] = wt * slip
         cf[_C_RHS, a] = wt * alpha
@@ -637,8 +660,8 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
                 acc_b = 0.0
                 for a in range(M):
                     acc += wg[a] * mv[i, a]
-                    if pt.post[a]:
-                        acc_b += plane[_P_CB, a] * bv[i, a]
+                    if pt.post[a]:  # (b' of the traction form, see _newton)
+                        acc_b += plane[_P_CB, a] * (bv[i, a] + _level_shift(plane, pt, dk, a) * nn[i, a])
                 J[i, 7] = acc
                 J[7, i] = -acc_b
             J[6, 7] = 0.0
@@ -647,6 +670,14 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
             rhs[7] = -g_s + post_alpha
     merit = 0.5 * (rn2 / (pt.r_scale * pt.r_scale) + phi2 + (phi0 / pt.r_scale) ** 2)
     return True, merit, rmax, phimax, abs(phi0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _level_shift(plane, pt, dk, a):
+    """(eta + h dkappa - etah) / sigma~ of a strong plane at the iterate: b' - b = this times Mandel(n n), where
+    b' is the derivative in the stress of its equation's traction form and b = d etah / d sigma (the rows of
+    ``ws.bvec``); 0 at a solution where the plane loads."""
+    return (plane[_P_ETA, a] + pt.floor[a] * dk[a] - plane[_P_RATIO, a]) * plane[_P_INV_ST, a]
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
@@ -686,8 +717,11 @@ def _newton(law, pd, opt, pt, sig, dk, dl_in, S_in, ws):
         for a in range(M):
             if strong[a]:
                 acc = 0.0
+                accn = 0.0
                 for j in range(6):
                     acc += ws.bvec[j, a] * step[j]
+                    accn += pd.nn[j, a] * step[j]
+                acc += _level_shift(plane, pt, dk, a) * accn  # b' = b + (level - etah) nn / sigma~ (evaluate)
                 dk_step[a] = plane[_P_ALPHA, a] + plane[_P_CB, a] * acc + plane[_P_GAMMA, a] * d_s
         alpha = 1.0
         accepted = False
@@ -1129,7 +1163,11 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     unit = ws.floor0
     stabilised = opt.minimal or opt.stabilisation > 0.0
     for a in range(M):
-        # (the thesis's law: no floor, and no plane stresses computed for it)
+        if strong[a]:  # the unit of its overstress (evaluate), 1 / sigma~ at sigma_n (at least the apex stress,
+            # as in floor_unit: any positive constant gives the same solution)
+            plane[_P_INV_ST0, a] = 1.0 / max(plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0],
+                                              law.apex_stress)
+        # (the thesis's law: no floor)
         unit[a] = floor_unit(law, sig_n, shift[a], a) if stabilised else 0.0
         ws.floor[a] = 0.0
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,

@@ -9,8 +9,8 @@ kink taking the loading branch, halving the fraction of the increment when Newto
 the implicit-function derivative of the converged equations, again by the complex step.
 
 Unknowns x = (sigma (6 components xx yy zz yz xz xy), dkappa of the strong planes, dlambda of the
-cut-off); equations F = (strain residual (6), Fischer-Burmeister residuals of the strong planes, of the
-cut-off). Weak planes (kappa_n <= A, and below the softening peak) take their slip in closed form.
+cut-off); equations F = (strain residual (6), Fischer-Burmeister residuals of the strong planes (their
+overstress in the traction form, as in the kernel), of the cut-off). Weak planes (kappa_n <= A, and below the softening peak) take their slip in closed form.
 """
 
 from __future__ import annotations
@@ -217,7 +217,10 @@ def residual(law: _Law, x, sig_n, de6, eps_n, kap_n, soft, strong, mu=None, grad
         k_hat = kap_n[strong][post] + dk[strong][post] + c0 - m * S
         eta[post] = law.softening(k_hat, ef[strong][post], soft)
         extra = [(S - np.sum(dk[strong][post])) / p.A]
-    v = (eta + mu[strong] * dk[strong] - ratio[strong]) / (1 + mu[strong] * p.A)
+    # the overstress in the traction form (sigma~ (eta + h dkappa) - T) / sigma~_n, sigma~_n at least the apex stress
+    st_n = law.planes(sig_n, ef)[1][strong]
+    st_n = np.where(st_n.real > p.apex_stress, st_n, p.apex_stress)
+    v = (eta + mu[strong] * dk[strong] - ratio[strong]) * st[strong] / st_n / (1 + mu[strong] * p.A)
     phi = _fb(u, v)
     phi0 = _fb(np.array([dl]), np.array([-np.trace(sig) / 3 / law.K]))
     return np.concatenate([_six(R), phi, phi0, np.asarray(extra)]), dk
