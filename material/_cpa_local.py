@@ -672,6 +672,19 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
     return True, merit, rmax, phimax, abs(phi0)
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FAST, **NO_REFCOUNT)
+def _inverse_shifted_normal_stress(sig, pd, shift, least, out, M):
+    """out[a] = 1 / max(sigma~_a, least) at the stress ``sig``: sigma~_a = -n_a . sig . n_a + shift_a."""
+    geo = pd.table.reshape(_NG * _ROW)
+    nn = _G_NN * _ROW
+    s0, s1, s2 = sig[0], sig[1], sig[2]
+    s3, s4, s5 = sig[3], sig[4], sig[5]
+    for a in range(M):
+        sn = (s0 * geo[nn + a] + s1 * geo[nn + _ROW + a] + s2 * geo[nn + 2 * _ROW + a] + s3 * geo[nn + 3 * _ROW + a]
+              + s4 * geo[nn + 4 * _ROW + a] + s5 * geo[nn + 5 * _ROW + a])
+        out[a] = 1.0 / max(shift[a] - sn, least)
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _level_shift(plane, pt, dk, a):
     """(eta + h dkappa - etah) / sigma~ of a strong plane at the iterate: b' - b = this times Mandel(n n), where
@@ -1162,11 +1175,11 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     # over the fraction lam of a step of size opt.step it is floor0 / (lam opt.step)
     unit = ws.floor0
     stabilised = opt.minimal or opt.stabilisation > 0.0
+    # the unit of a strong plane's overstress (evaluate), 1 / sigma~ at sigma_n (at least the apex stress, as
+    # in floor_unit: any positive constant gives the same solution), for every plane in one loop over the
+    # plane-major rows, which vectorises
+    _inverse_shifted_normal_stress(sig_n, pd, shift, law.apex_stress, plane[_P_INV_ST0], M)
     for a in range(M):
-        if strong[a]:  # the unit of its overstress (evaluate), 1 / sigma~ at sigma_n (at least the apex stress,
-            # as in floor_unit: any positive constant gives the same solution)
-            plane[_P_INV_ST0, a] = 1.0 / max(plane_stress(sig_n, law.normals[a], shift[a], law.rounding)[0],
-                                              law.apex_stress)
         # (the thesis's law: no floor)
         unit[a] = floor_unit(law, sig_n, shift[a], a) if stabilised else 0.0
         ws.floor[a] = 0.0
