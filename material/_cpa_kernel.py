@@ -15,7 +15,8 @@ from material._cpa_local import (
     Point,
     _ratios,
     _uniqueness_floor,
-    floor_unit,
+    floor_units,
+    inverse_shifted_normal_stress,
     make_path,
     make_workspace,
     plane_data,
@@ -90,7 +91,9 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
     N = sig_n.shape[0]
     M = kap_n.shape[1]
     ws = make_workspace(M)
+    pd = plane_data(law)
     lam6 = np.empty(6)
+    inv_st = np.empty(M)
     unit = np.empty(M)
     zero6 = np.zeros(6)
     no_shift = np.zeros(M)
@@ -102,7 +105,8 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
             ws.strong[a] = kap_n[p, a] > law.A or (soft[p] > 0.0 and kap_n[p, a] >= law.kstar)
             ws.post[a] = False
             ws.floor[a] = 0.0
-            unit[a] = floor_unit(law, sig_n[p], ws.shift[a], a)
+        inverse_shifted_normal_stress(sig_n[p], pd, ws.shift, law.apex_stress, inv_st, M)
+        floor_units(law, inv_st, unit, M)
         pt = Point(sig_n[p], zero6, kap_n[p], soft[p], ws.eta_f, ws.shift, ws.strong, ws.select, ws.floor, 1.0,
                    ws.post, False, 0.0, 0.0, no_shift)
         out[p] = _uniqueness_floor(law, pt, ws, unit)

@@ -673,7 +673,7 @@ def evaluate(law, pd, pt, sig, dk, dl, S, want_jac, plane, ws):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FAST, **NO_REFCOUNT)
-def _inverse_shifted_normal_stress(sig, pd, shift, least, out, M):
+def inverse_shifted_normal_stress(sig, pd, shift, least, out, M):
     """out[a] = 1 / max(sigma~_a, least) at the stress ``sig``: sigma~_a = -n_a . sig . n_a + shift_a."""
     geo = pd.table.reshape(_NG * _ROW)
     nn = _G_NN * _ROW
@@ -979,13 +979,14 @@ def _cholesky_succeeds(S):
     return True
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def floor_unit(law, sig_n, shift_a, a):
-    """The step stabilisation's floor of plane ``a`` per unit mu: its elastic self-coupling (w_a / t) G / sigma~_a
-    at the start-of-step stress ``sig_n`` (sigma~ at least the apex stress) [1/m] (``docs/cpa_law.md``, section 3)."""
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def floor_units(law, inv_st, out, M):
+    """The step stabilisation's floor of every plane per unit mu, into ``out``: its elastic self-coupling
+    (w_a / t) G / sigma~_a [1/m] at the start-of-step stress, given ``inv_st`` = 1 / max(sigma~_a, apex stress)
+    (:func:`inverse_shifted_normal_stress`; ``docs/cpa_law.md``, section 3)."""
     g_mod = 0.5 / law.comp[5, 5]  # shear modulus (the Mandel compliance of a shear is 1 / (2 G))
-    sigma_t = plane_stress(sig_n, law.normals[a], shift_a, law.rounding)[0]
-    return law.weights[a] * law.inv_t * g_mod / max(sigma_t, law.apex_stress)
+    for a in range(M):
+        out[a] = law.weights[a] * law.inv_t * g_mod * inv_st[a]
 
 
 @njit(cache=True, error_model="numpy", **REFCOUNT)
@@ -1176,12 +1177,14 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
     unit = ws.floor0
     stabilised = opt.minimal or opt.stabilisation > 0.0
     # the unit of a strong plane's overstress (evaluate), 1 / sigma~ at sigma_n (at least the apex stress, as
-    # in floor_unit: any positive constant gives the same solution), for every plane in one loop over the
+    # in floor_units: any positive constant gives the same solution), for every plane in one loop over the
     # plane-major rows, which vectorises
-    _inverse_shifted_normal_stress(sig_n, pd, shift, law.apex_stress, plane[_P_INV_ST0], M)
+    inverse_shifted_normal_stress(sig_n, pd, shift, law.apex_stress, plane[_P_INV_ST0], M)
+    if stabilised:
+        floor_units(law, plane[_P_INV_ST0], unit, M)
     for a in range(M):
-        # (the thesis's law: no floor)
-        unit[a] = floor_unit(law, sig_n, shift[a], a) if stabilised else 0.0
+        if not stabilised:  # (the thesis's law: no floor)
+            unit[a] = 0.0
         ws.floor[a] = 0.0
     pt = Point(sig_n, de_lam, kap_n, soft, eta_f, shift, strong, ws.select, ws.floor, r_scale, post, coupled, c0,
                m_over, nl_shift)

@@ -10,7 +10,8 @@ the implicit-function derivative of the converged equations, again by the comple
 
 Unknowns x = (sigma (6 components xx yy zz yz xz xy), dkappa of the strong planes, dlambda of the
 cut-off); equations F = (strain residual (6), Fischer-Burmeister residuals of the strong planes (their
-overstress in the traction form, as in the kernel), of the cut-off). Weak planes (kappa_n <= A, and below the softening peak) take their slip in closed form.
+overstress in the traction form, as in the kernel), of the cut-off). Weak planes (kappa_n <= A, and below
+the softening peak) take their slip in closed form.
 """
 
 from __future__ import annotations
