@@ -403,21 +403,6 @@ def _lu_solve_n(LU, piv, b, n):
 #: depend on this choice, never the equations or their solution.
 _ON_CURVE = 1e-12
 
-#: A plane within this (relative) of its hardening curve at sigma_n is on its curve for the rate problem at
-#: the start of the step (:func:`_rate_coupling`). A plane that loaded in the last step ends it on its curve only
-#: to the local solver's tolerance: ``tol`` (1e-12) bounds its scaled overstress sigma~ / sigma~_n (eta - etah),
-#: so the gap eta - etah can exceed 1e-12 where sigma~ fell within the step. Measured at an edge point of the
-#: isotropic footing (``tests/material/data/footing_edge_vertex_point.npz``; 27 loading planes, three of
-#: them nearly perfectly plastic, 0.1 kPa): a loading plane 1.6e-12 below its curve was left out of the rate
-#: problem at 1e-12, kept its elastic branch, and the local Newton from sigma_n stalled with that plane
-#: overstressed in proportion to the fraction of the increment (Phi = 1.6e-5 at lambda = 1, 3.9e-9 at
-#: 2^-12), so the point failed for every increment down to 7e-7 and the footing stopped. Taken in, the
-#: point converges in 47 iterations without a halving. 1e-9 leaves a thousand times the solver's tolerance;
-#: a plane truly below its curve by less than that reaches it within a negligible fraction of any increment.
-#: (Not for the kink test of :func:`_fb`, which sees every iterate: with 1e-9 there the same point failed for
-#: its increment times 1e-6, whose slips and overstresses all lie within it.)
-_RATE_ON_CURVE = 1e-9
-
 
 @njit(cache=True, error_model="numpy")
 def _fb(u, v, loading):
@@ -887,7 +872,7 @@ def _rate_coupling(law, pt, ws, on, with_floor):
         ratio = T / sigma_t
         eta, deta = _level(law, pt.kap_n[a], pt.eta_f[a], pt.soft, pt.coupled and pt.post[a],
                            pt.nl_shift[a] + pt.c0)
-        if sigma_t > 0.0 and ratio >= eta - _RATE_ON_CURVE * (1.0 + eta):
+        if sigma_t > 0.0 and ratio >= eta - _ON_CURVE * (1.0 + eta):
             on[n] = a
             n += 1
             hard[a] = deta + (pt.floor[a] if with_floor else 0.0)

@@ -132,8 +132,7 @@ def rate_coupling(law, sig_n, ef, kap_n, soft, level=None):
 
     ratio, st, g = law.planes(sig_n, ef)
     eta_n = eta_of(kap_n.astype(complex)).real
-    # on its curve: within 1e-9 (relative), a thousand times the solver's tolerance (the kernel's _RATE_ON_CURVE)
-    on = np.flatnonzero((st > 0) & (ratio >= eta_n - 1e-9 * (1 + eta_n)))
+    on = np.flatnonzero((st > 0) & (ratio >= eta_n - 1e-12 * (1 + eta_n)))
     b = np.zeros((len(ratio), 3, 3))
     for i in range(3):
         for j in range(3):
