@@ -623,6 +623,32 @@ def test_a_strongly_overstressed_point_relaxes_over_whole_relaxation_times():
     assert np.abs(D[0] - D_ref).max() <= 1e-6 * np.abs(D_ref).max()
 
 
+@pytest.mark.xfail(strict=True, reason="known defect: the rate problem's on-curve test (1e-12) is tighter than the "
+                   "solver's tolerance, and widening it needs the tension cut-off in the rate problem (docs/cpa_law.md §3)")
+def test_a_plane_that_loaded_to_the_solvers_tolerance_takes_part_in_the_rate_problem():
+    """An edge point of the isotropic footing (equator-78 rule, E = 60 MPa, resolution 5, 80 steps; 0.1 kPa,
+    27 loading planes, three of them nearly perfectly plastic). The loading plane 10 ended the last step
+    1.6e-12 below its hardening curve: within the local solver's tolerance (a loading plane ends a step with
+    |sigma~ (eta - etah) / sigma~_n| <= tol), outside the rate problem's test of "on its curve" (1e-12). It
+    keeps its elastic branch, the first Newton step overstresses it, and the local Newton stalls with Phi in
+    proportion to the fraction of the increment (1.6e-5 at lambda = 1, 3.9e-9 at 2^-12): the point fails for
+    its increment and for every cut-back down to 7e-7, and that footing stops at s = 0.0036 B. With the test at
+    1e-9 it converged in 47 iterations without a halving at every multiple 1e-6 ... 10 of its increment and
+    agreed with the reference; that change was reverted because it moved the equator-78 footing of the slow
+    tests onto a point on the tension cut-off, which the rate problem leaves out. Strict xfail: it fails as
+    soon as the defect is mended."""
+    model, d, state = _replay_file("footing_edge_vertex_point.npz")
+    eta_f = model.friction_coefficients(state["strain"])[0]
+    etah = model.mobilised_ratios(d["stress"], state["strain"])[0]
+    kap, A = state["kappa"][0], model.params.A
+    gap = eta_f * kap / (A + kap) - etah
+    loading = state["loading"][0]
+    assert loading.sum() == 27 and loading[10] and 1.5e-12 < gap[10] < 1.7e-12
+    for scale in (1e-6, 1e-3, 1.0):
+        _, st, _ = model.update(d["d_strain"] * scale, d["stress"], state)
+        assert st["status"][0] == STATUS_OK and st["continuation"][0] == 0, (scale, st["continuation"])
+
+
 def _overstress_of_committed_state(model, stress, state):
     """The share of each loading plane's mobilised ratio above its hardening curve, from the committed
     stress and slips alone (the public ratios and strengths, the hyperbola 2.16): max_a (etah_a - eta_a) / etah_a."""
