@@ -113,12 +113,16 @@ class _Law:
         return ratio, st, g
 
 
-def rate_coupling(law, sig_n, ef, kap_n, soft, level=None):
+def rate_coupling(law, sig_n, ef, kap_n, soft, level=None, cutoff=None):
     """The rate problem of one point at sigma_n (``docs/cpa_law.md``, section 4), by the definition: the
-    planes ``on`` their hardening curve, and with b_a = d etah_a / d sigma (complex step), m_a = sym(g_a (x) n_a)
-    and C the elastic stiffness, q_a(d_eps) = b_a : C d_eps is returned as the (n, 3, 3) tensors C b_a and
-    H_ab = (w_b / t) b_a : C m_b + eta'_a delta_ab. ``level``: (planes, shifts) of the planes past their peak
-    under the implicit gradient, whose level is the softening branch at kappa_n + shift.
+    planes ``on`` their hardening curve (within 1e-9 relative), and with b_a = d etah_a / d sigma (complex
+    step), m_a = sym(g_a (x) n_a) and C the elastic stiffness, q_a(d_eps) = b_a : C d_eps is returned as the
+    (n, 3, 3) tensors C b_a and H_ab = (w_b / t) b_a : C m_b + eta'_a delta_ab. ``level``: (planes, shifts) of
+    the planes past their peak under the implicit gradient, whose level is the softening branch at
+    kappa_n + shift. ``cutoff``: None, or the point's strain scale r: where -p / K <= 1e-9 r at sigma_n the
+    mean-stress cut-off is one more unknown, last, marked M (the number of planes) in ``on``: its opening
+    rate x_0 (the plastic volumetric strain rate) with the rate of p / K, q_0 - H_0. x, q_0 = C I : d_eps / (3 K),
+    H_00 = C I : I / (9 K), H_0b = (w_b / t) C I : m_b / (3 K), and in the planes' rows H_a0 = b_a : C I / 3.
     Returns (on, Cb, H, sigma~ of every plane); ``law`` is ``_Law(model)``."""
     p = law.p
 
@@ -132,7 +136,7 @@ def rate_coupling(law, sig_n, ef, kap_n, soft, level=None):
 
     ratio, st, g = law.planes(sig_n, ef)
     eta_n = eta_of(kap_n.astype(complex)).real
-    on = np.flatnonzero((st > 0) & (ratio >= eta_n - 1e-12 * (1 + eta_n)))
+    on = np.flatnonzero((st > 0) & (ratio >= eta_n - 1e-9 * (1 + eta_n)))
     b = np.zeros((len(ratio), 3, 3))
     for i in range(3):
         for j in range(3):
@@ -147,7 +151,15 @@ def rate_coupling(law, sig_n, ef, kap_n, soft, level=None):
 
     deta = eta_of(kap_n + 1j * _H * p.A).imag / (_H * p.A)
     H = np.einsum("aij,bij->ab", b[on], stiff(m[on])) * (law.w[on] / p.t)[None, :] + np.diag(deta[on])
-    return on, stiff(b[on]), H, st
+    Cb = stiff(b[on])
+    if cutoff is not None and -np.trace(sig_n) / 3 / law.K <= 1e-9 * cutoff:
+        ci = stiff(np.eye(3))  # the stress rate of a unit volumetric strain rate, times 3
+        row = np.einsum("ij,bij->b", ci, m[on]) * law.w[on] / p.t / (3 * law.K)
+        col = np.einsum("aij,ij->a", b[on], ci) / 3
+        H = np.block([[H, col[:, None]], [row[None, :], np.array([[np.trace(ci) / (9 * law.K)]])]])
+        Cb = np.concatenate([Cb, ci[None] / (3 * law.K)])
+        on = np.append(on, len(ratio))
+    return on, Cb, H, st
 
 
 def minimal_stabilisation(law, sig_n, ef, kap_n, soft, unit, level=None):
