@@ -382,22 +382,14 @@ def test_the_tangent_past_a_limit_point_is_the_forward_difference_of_the_update_
             assert (np.abs(D[:, :, j] - central) <= 1e-2 * scale).all()
 
 
-def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
-    """A point of the thesis-sand footing at 90 % mobilisation whose planes on their curves couple into
-    a rate problem with three solutions (not a P-matrix problem; enumerated here with the reference
-    algebra): Lemke's method in the kernel picks one of them."""
-    import itertools
-
+def _kernel_rate_choice(model, d, state, r_scale):
+    """The kernel's rate problem of the stored point: (select (M + 1,), found), select[M] the cut-off's."""
     from material import _cpa_local as L
     from material._cpa_kernel import to_mandel
     from material._cpa_plane import induced_tensor, plane_strengths
-    from material.cpa_reference import _Law, rate_coupling
 
-    model, d, state = _replay_file("near_failure_point.npz")
     law = model._law
-    sig_n = to_mandel(d["stress"][:1])[0]
-    de = to_mandel(d["d_strain"][:1])[0]
-    eps_n = to_mandel(state["strain"][:1])[0]
+    sig_n, de, eps_n = (to_mandel(a[:1])[0] for a in (d["stress"], d["d_strain"], state["strain"]))
     kap_n = np.ascontiguousarray(state["kappa"][0])
     M = kap_n.size
     ws = L.make_workspace(M)
@@ -405,9 +397,23 @@ def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivotin
     induced_tensor(eps_n + de, law.beta, law.alpha_hat, law.beta_hat, lam6)
     plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
     pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
-                 ws.select, ws.floor, 1.0, ws.post, False, 0.0, 0.0, np.zeros(M))
-    assert L._rate_active_set(law, pt, ws)
-    chosen = {int(a) for a in np.flatnonzero(ws.select[:M])}  # (select[M]: the cut-off, off here)
+                 ws.select, ws.floor, r_scale, ws.post, False, 0.0, 0.0, np.zeros(M))
+    found = L._rate_active_set(law, pt, ws)
+    return ws.select.copy(), found
+
+
+def test_rate_problem_of_a_near_failure_point_is_solved_by_complementary_pivoting():
+    """A point of the thesis-sand footing at 90 % mobilisation whose planes on their curves couple into
+    a rate problem with three solutions (not a P-matrix problem; enumerated here with the reference
+    algebra): Lemke's method in the kernel picks one of them."""
+    import itertools
+
+    from material.cpa_reference import _Law, rate_coupling
+
+    model, d, state = _replay_file("near_failure_point.npz")
+    select, _ = _kernel_rate_choice(model, d, state, 1.0)
+    chosen = {int(a) for a in np.flatnonzero(select[:-1])}  # (select[M]: the cut-off, off here)
+    kap_n = state["kappa"][0]
     # the rate problem by the reference: b_a = d etah_a / d sigma (complex step), m_a, q and H
     ref = _Law(model)
     ef = ref.eta_f(state["strain"][0] + d["d_strain"][0])
@@ -664,29 +670,20 @@ def test_the_rate_problem_of_a_point_on_the_tension_cut_off_includes_the_cut_off
     converges without a halving for every multiple 1e-8 ... 10 of the increment, its opening the reference's
     rate x_0 times the increment (to 1e-4 for 1e-4 ... 1 of it), and agrees with the reference. (Without the
     cut-off in the rate problem the point failed for its increment: 12 planes took the elastic branch and the
-    first Newton step overstressed them. And before the rate problem was made free of units, Lemke's
+    first Newton step overstressed them. And before q of the rate problem was made free of units, Lemke's
     absolute tolerances chose another set at 1e-5 of the increment than at 1, and the point failed there.)"""
-    from material import _cpa_local as L
-    from material._cpa_kernel import to_mandel
-    from material._cpa_plane import induced_tensor, plane_strengths
     from material.cpa_reference import _Law, rate_coupling, update_point
 
     model, d, state = _replay_file("footing_cutoff_point.npz")
     assert abs(np.trace(d["stress"][0])) < 1e-15 and np.trace(d["d_strain"][0]) > 0
-    law = model._law
-    sig_n, de, eps_n = (to_mandel(a[:1])[0] for a in (d["stress"], d["d_strain"], state["strain"]))
-    kap_n = np.ascontiguousarray(state["kappa"][0])
+    de = np.abs(d["d_strain"][0])
+    r_scale = max(de.max(), np.sqrt(2.0) * (de - np.diag(np.diag(de))).max()) + max(
+        np.abs(d["stress"][0]).max(), model._law.apex_stress) / model.params.E  # (Mandel components)
+    select, found = _kernel_rate_choice(model, d, state, r_scale)
+    kap_n = state["kappa"][0]
     M = kap_n.size
-    ws = L.make_workspace(M)
-    lam6 = np.zeros(6)
-    induced_tensor(eps_n + de, law.beta, law.alpha_hat, law.beta_hat, lam6)
-    plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
-    r_scale = np.abs(de).max() + max(np.abs(sig_n).max(), law.apex_stress) / model.params.E
-    pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
-                 ws.select, ws.floor, r_scale, ws.post, False, 0.0, 0.0, np.zeros(M))
-    assert L._rate_active_set(law, pt, ws)
-    chosen = set(np.flatnonzero(ws.select[:M]).tolist())
-    assert ws.select[M] and len(chosen) == 17
+    chosen = set(np.flatnonzero(select[:M]).tolist())
+    assert found and select[M] and len(chosen) == 17
     ref = _Law(model)
     ef = ref.eta_f(state["strain"][0] + d["d_strain"][0])
     rates = {}
