@@ -19,8 +19,9 @@ line-search trials included) with
 * ``rate``: the estimated order of convergence log(r_k / r_k-1) / log(r_k-1 / r_k-2) of the accepted
   iterates (2 for quadratic, 1 for linear convergence);
 * on the rows of full Newton steps (line search s = 1), what made the step miss: ``overshoot`` (its
-  residual over the iterate's), ``overshoot_points``, ``overshoot_pressure``, ``overshoot_unloading``
-  (:func:`full_step_overshoot`; NaN on the other rows; only ``overshoot`` for a coupled discretisation).
+  residual over the iterate's), ``overshoot_points``, ``overshoot_pressure``, ``overshoot_unloading``,
+  ``overshoot_planes``, ``overshoot_point`` (:func:`full_step_overshoot`; NaN on the other rows; only
+  ``overshoot`` for a coupled discretisation).
 
 The rows are kept in memory (:attr:`NewtonLog.rows`, also as :meth:`NewtonLog.table`) and, with a
 path, appended to a CSV file as they come (``newton_log.csv`` in a case's run folder).
@@ -52,7 +53,8 @@ __all__ = ["NewtonLog", "COLUMNS", "full_step_overshoot", "kinks_along", "solver
 COLUMNS = ("step", "attempt", "iteration", "load_factor", "residual", "line_search", "accepted",
            "points_switched", "planes_switched", "loading_points", "apex_points", "local_iterations_mean",
            "local_iterations_max", "continuation_points", "limit_points", "failed_points", "rate",
-           "overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes")
+           "overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes",
+           "overshoot_point")
 
 
 DESCRIPTIONS = {
@@ -77,6 +79,8 @@ DESCRIPTIONS = {
     "overshoot_unloading": "full Newton step: loading planes that stopped loading at that point",
     "overshoot_planes": "full Newton step: loading planes of that point at the iterate (against those of the "
                         "other points: docs/cpa_law.md, section 4)",
+    "overshoot_point": "full Newton step: index of the point with the most unpredicted stress (the order of the "
+                       "output's point data)",
 }
 
 
@@ -97,7 +101,9 @@ def full_step_overshoot(volume, stress0, tangent0, stress1, direction, loading0=
     * ``overshoot_pressure``: the mean stress -tr(sigma0)/3 of the largest share [kPa];
     * ``overshoot_unloading``: how many of its loading planes stop loading at the full step (when the
       law reports ``loading``, (N, planes) bool, at the iterate and at the full step; else NaN);
-    * ``overshoot_planes``: how many planes load at that point at the iterate (NaN likewise).
+    * ``overshoot_planes``: how many planes load at that point at the iterate (NaN likewise);
+    * ``overshoot_point``: that point's index (NaN when nothing is missed): whether one place, e.g. a
+      corner, makes the steps miss, or the misses wander over the plastic zone.
 
     None when the tangent is not a plain (N, 3, 3, 3, 3) array (a coupled field's tangent). No material
     call and no assembly (about 0.2 ms for 2,430 points).
@@ -117,7 +123,7 @@ def full_step_overshoot(volume, stress0, tangent0, stress1, direction, loading0=
     out = {"share": share,
            "overshoot_points": int(np.searchsorted(np.cumsum(np.sort(share)[::-1]), 0.5) + 1) if total > 0 else 0,
            "overshoot_pressure": float(-np.trace(np.asarray(stress0)[top]) / 3.0), "overshoot_unloading": math.nan,
-           "overshoot_planes": math.nan}
+           "overshoot_planes": math.nan, "overshoot_point": top if total > 0 else math.nan}
     if loading0 is not None and loading1 is not None:
         l0, l1 = np.asarray(loading0, dtype=bool), np.asarray(loading1, dtype=bool)
         if l0.shape == l1.shape and l0.ndim == 2:
@@ -191,7 +197,8 @@ class NewtonLog:
             else math.nan
         row["failed_points"] = int(np.sum(np.asarray(state["status"]) == STATUS_FAILED))
         row["rate"] = math.nan
-        for c in ("overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes"):
+        for c in ("overshoot", "overshoot_points", "overshoot_pressure", "overshoot_unloading", "overshoot_planes",
+                  "overshoot_point"):
             row[c] = math.nan if overshoot is None else overshoot[c]
         if accepted:
             self._accepted.append(residual)
@@ -331,8 +338,10 @@ def stall_report(solver, points: int = 21) -> str:
     integrates there, the law's strain-driven problem has a second solution from the same start, and
     the sentence gives both branches' loading planes and second-order work (a negative one is a
     softening response: the material state is unstable). Where no point fails, the sentence names the
-    point with the largest jump of its stress rate. Measured on the thesis-sand footing in
-    ``docs/cpa_law.md``, section 4."""
+    point with the largest jump of its stress rate. Either way it ends with the law's uniqueness at the
+    iterate itself (:func:`_iterate_uniqueness`: the committed state's report misses the planes that load
+    within the step, e.g. every plane of an in-situ state inside its elastic margin). Measured on the
+    thesis-sand footing in ``docs/cpa_law.md``, section 4."""
     last = getattr(solver, "stalled", None)
     if last is None or solver.disc.n_displacement_dofs != solver.disc.ndofs:
         return ""
@@ -346,7 +355,8 @@ def stall_report(solver, points: int = 21) -> str:
     if bad.size == 0:
         i = int(np.argmax(probe["slope_jump"]))
         return (f"{where} every point's update has a solution; the largest jump of a point's stress rate is at "
-                f"point {i} (mean stress {mean[i]:.3g} kPa, at s = {probe['s_kink'][i]:.2g})")
+                f"point {i} (mean stress {mean[i]:.3g} kPa, at s = {probe['s_kink'][i]:.2g})"
+                + _iterate_uniqueness(solver, du))
     i = int(bad[np.argmin(probe["failed_at"][bad])])
     s_fail = float(probe["failed_at"][i])
     s_before = float(s[max(int(np.searchsorted(s, s_fail)) - 1, 0)])
@@ -370,7 +380,31 @@ def stall_report(solver, points: int = 21) -> str:
         text += (f"; at the full Newton step it integrates on another branch from the same start"
                  + (f", {planes1} loading planes, second-order work {work1:.2g} kPa" if planes1 is not None else "")
                  + ": the strain-driven problem has two solutions there")
-    return text + "; docs/cpa_law.md, section 4)"
+    return text + "; docs/cpa_law.md, section 4)" + _iterate_uniqueness(solver, du)
+
+
+def _iterate_uniqueness(solver, du) -> str:
+    """For :func:`stall_report`: where the CPA law's rate problem has no unique solution (by the sufficient
+    condition of :meth:`material.CPAModel.uniqueness_floor`) at the iterate du, whose planes loading within
+    the step the committed state's report (:func:`uniqueness_report`) does not see; empty where it is unique
+    at every point, or for another law."""
+    law = cpa_law(solver.points.material)
+    if law is None:
+        return ""
+    pts = solver.points
+    rate = {"step_fraction": solver.step_fraction} if getattr(pts.material, "rate_dependent", False) else {}
+    copy = {k: np.array(v, copy=True) for k, v in pts.state.items()}
+    sig, st, _ = pts.material.update(solver.disc.strain(du), pts.stress, copy, tangent=False, **rate)
+    mu = law.uniqueness_floor(sig, st)
+    lost = mu > 0.0
+    if not lost.any():
+        return "; at the iterate the rate problem is unique at every point (by the sufficient condition)"
+    worst = int(np.argmax(mu))
+    loading = np.asarray(st["loading"]).sum(axis=1) if "loading" in st else None
+    planes = f", {int(loading[worst])} loading planes" if loading is not None else ""
+    return (f"; at the iterate (with the planes that load within the step) the rate problem has no unique solution "
+            f"(by the sufficient condition) at {int(lost.sum())} of {mu.size} points, up to mu = {mu[worst]:.3g} "
+            f"(point {worst}, mean stress {-np.trace(sig[worst]) / 3.0:.3g} kPa{planes})")
 
 
 def cpa_law(material):

@@ -536,7 +536,7 @@ class NewtonSolver:
             if s == 1.0 and base is not None:  # a full Newton step: where it left the tangent's prediction
                 stress0, tangent0, loading0, strain0, rf0 = base
                 over = {"overshoot_points": np.nan, "overshoot_pressure": np.nan, "overshoot_unloading": np.nan,
-                        "overshoot_planes": np.nan}
+                        "overshoot_planes": np.nan, "overshoot_point": np.nan}
                 if isinstance(tangent0, np.ndarray):  # (a coupled field's tangent: the ratio only)
                     over.update(full_step_overshoot(self.disc.dx, stress0, tangent0, self.points.trial_stress,
                                                     self._trial_strain - strain0, loading0,

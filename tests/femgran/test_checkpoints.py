@@ -167,6 +167,23 @@ def test_a_run_that_stops_says_where_the_law_lost_uniqueness(tmp_path, monkeypat
     assert json.loads((tmp_path / "r" / "status.json").read_text())["reason"].endswith("; STALL; REPORT")
 
 
+def test_a_stall_at_the_first_step_of_the_stiff_sand_is_the_non_associated_law_losing_uniqueness(tmp_path):
+    """The stiff thesis sand (E = 60 MPa, c0 = 0) stops in its first footing step: the committed in-situ
+    state has no loading plane, so the uniqueness report of the last converged state is empty, and the stall
+    probe checks the iterate, where planes load within the step: there hundreds of points have a rate
+    problem with several solutions (256 of 630 on this mesh). The same sand with associated flow on every
+    plane (eta_c = 0) runs the same steps to the end (docs/cpa_law.md, section 4)."""
+    case = Footing(resolution=1, steps=6, settlement_m=0.01)
+    sand = {"preset": "ottawa_c109", "set": {"E": 60000, "c0": 0.0}}
+    sol = run(case, sand, solver={"max_cuts": 2}, output=Output(tmp_path / "thesis", plots=False))
+    assert not sol.completed and sol.stop_reason.startswith("stopped at t = 0: line search")
+    note = sol.stop_reason.split("at the iterate (with the planes that load within the step) ")[1]
+    lost, total = (int(x) for x in note.split("(by the sufficient condition) at ")[1].split(" points")[0].split(" of "))
+    assert total == 630 and lost >= 100
+    associated = {"preset": "ottawa_c109", "set": {"E": 60000, "c0": 0.0, "eta_c_ratio": 0.0}}
+    assert run(case, associated, solver={"max_cuts": 2}, output=Output(tmp_path / "assoc", plots=False)).completed
+
+
 def test_a_kill_during_a_checkpoint_write_leaves_the_previous_one_and_a_corrupted_one_is_named(tmp_path):
     out = Output(tmp_path / "r", plots=False, checkpoint_every=2, keep_checkpoints=3)
     run(CASE, SAND, output=out)

@@ -464,7 +464,7 @@ def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_le
     sig1 = sig0 + np.einsum("nijkl,nkl->nij", D, deps)
     out = full_step_overshoot(d.dx, sig0, D, sig1, deps)
     assert out["overshoot_points"] == 0 and not out["share"].any() and np.isnan(out["overshoot_unloading"])
-    assert np.isnan(out["overshoot_planes"])
+    assert np.isnan(out["overshoot_planes"]) and np.isnan(out["overshoot_point"])
     k = 5
     bump = np.zeros((n, 3, 3))
     bump[k] = np.diag([3.0, -1.0, 2.0])
@@ -474,7 +474,7 @@ def test_full_step_overshoot_is_nil_for_a_linear_law_and_names_the_point_that_le
     loading1[k, 2:] = True  # planes 0 and 1 stop loading, 3 starts
     out = full_step_overshoot(d.dx, sig0, D, sig1 + bump, deps, loading0, loading1)
     v = d.dx.ravel()
-    assert out["overshoot_points"] == 1 and out["share"].argmax() == k
+    assert out["overshoot_points"] == 1 and out["share"].argmax() == k and out["overshoot_point"] == k
     assert out["share"][k] == pytest.approx(v[k] / (v[k] + 0.1 * v[k + 1]), rel=1e-9)
     assert out["overshoot_pressure"] == pytest.approx(-np.trace(sig0[k]) / 3.0)
     assert out["overshoot_unloading"] == 2 and out["overshoot_planes"] == 3
