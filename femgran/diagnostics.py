@@ -394,7 +394,7 @@ def _iterate_uniqueness(solver, du) -> str:
     pts = solver.points
     rate = {"step_fraction": solver.step_fraction} if getattr(pts.material, "rate_dependent", False) else {}
     copy = {k: np.array(v, copy=True) for k, v in pts.state.items()}
-    sig, st, _ = pts.material.update(solver.disc.strain(du), pts.stress, copy, tangent=False, **rate)
+    sig, st, _ = pts.material.update(solver.disc.strain(du), pts.stress, copy, **rate)
     mu = law.uniqueness_floor(sig, st)
     lost = mu > 0.0
     if not lost.any():
