@@ -170,9 +170,9 @@ def test_a_run_that_stops_says_where_the_law_lost_uniqueness(tmp_path, monkeypat
 def test_a_stall_at_the_first_step_of_the_stiff_sand_is_the_non_associated_law_losing_uniqueness(tmp_path):
     """The stiff thesis sand (E = 60 MPa, c0 = 0) stops in its first footing step: the committed in-situ
     state has no loading plane, so the uniqueness report of the last converged state is empty, and the stall
-    probe checks the iterate, where planes load within the step: there hundreds of points have a rate
-    problem with several solutions (256 of 630 on this mesh). The same sand with associated flow on every
-    plane (eta_c = 0) runs the same steps to the end (docs/cpa_law.md, section 4)."""
+    probe checks the iterate, where planes load within the step: there hundreds of points fail the
+    sufficient condition for a unique rate problem (256 of 630 on this mesh). The same sand with associated
+    flow on every plane (eta_c = 0) runs the same steps to the end (docs/cpa_law.md, section 4)."""
     case = Footing(resolution=1, steps=6, settlement_m=0.01)
     sand = {"preset": "ottawa_c109", "set": {"E": 60000, "c0": 0.0}}
     sol = run(case, sand, solver={"max_cuts": 2}, output=Output(tmp_path / "thesis", plots=False))
