@@ -206,11 +206,17 @@ def _overlay(sols, x, y, path, label, descriptions):
                 xlabel=f"{x}: {descriptions.get(x, '')}", ylabel=f"{y}: {descriptions.get(y, '')}")
 
 
-def _checkpoint_flags(p):
+def _checkpoint_flags(p, from_file: bool = False):
+    """``--checkpoint-every`` and ``--keep-checkpoints``. With ``from_file`` (``femgran run``) they default to
+    None: the case file's ``[output]`` values hold unless a flag is given (a default of 0 used to switch off the
+    checkpoints a file asked for, while the run folder's copy of the file still showed them)."""
     g = p.add_argument_group("checkpoints (femgran.checkpoint)")
-    g.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
-                   help="a checkpoint every N converged steps (default 0: at the end, on a stop or Ctrl-C only)")
-    g.add_argument("--keep-checkpoints", type=int, default=2, metavar="K", help="keep the last K (default 2)")
+    every, keep = ("the case file's [output] checkpoint_every", "the file's keep_checkpoints") if from_file else \
+        ("0: at the end, on a stop or Ctrl-C only", "2")
+    g.add_argument("--checkpoint-every", type=int, default=None if from_file else 0, metavar="N",
+                   help=f"a checkpoint every N converged steps (default {every})")
+    g.add_argument("--keep-checkpoints", type=int, default=None if from_file else 2, metavar="K",
+                   help=f"keep the last K (default {keep})")
 
 
 def _study_flags(p):
@@ -226,7 +232,7 @@ def _run(args):
 
     if (args.case_file is None) == (args.resume is None):
         raise ValueError("femgran run: give a case file, or --resume OUT (a run folder), not both")
-    over = {"checkpoint_every": args.checkpoint_every, "keep_checkpoints": args.keep_checkpoints}
+    over = {k: v for k in ("checkpoint_every", "keep_checkpoints") if (v := getattr(args, k)) is not None}
     if args.resume is not None:
         folder = Path(args.resume)
         if not (folder / "case.toml").is_file():
@@ -418,6 +424,6 @@ def register(subparsers) -> None:
     p.add_argument("--resume", metavar="OUT", default=None,
                    help="continue the run in folder OUT from its last checkpoint (its case.toml and inputs)")
     _solver_flags(p)
-    _checkpoint_flags(p)
+    _checkpoint_flags(p, from_file=True)
     add_progress(p)
     p.set_defaults(func=_run)

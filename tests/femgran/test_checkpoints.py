@@ -106,6 +106,30 @@ def test_the_command_line_interrupts_with_a_message_and_resumes(tmp_path, monkey
     assert len(read_table(out / "history.csv")) == 7
 
 
+def test_a_case_file_s_checkpoint_settings_hold_unless_a_flag_is_given(tmp_path):
+    """``femgran run FILE`` keeps the file's ``checkpoint_every`` / ``keep_checkpoints`` (the flags' defaults
+    used to replace them by 0 and 2: no checkpoint along the run, while the copied case.toml said 1); a flag
+    given on the command line still wins."""
+    from femgran.cli import main
+
+    def case(out, every=1, keep=3):
+        path = tmp_path / f"{out}.toml"
+        path.write_text(f"""[case]\nname = "footing"\nunit_weight = 0.0\nresolution = 1\nsteps = 4\n
+settlement_m = 0.004\n[material]\nlaw = "von_mises"\nE_kPa = 30000.0\nnu = 0.3\nyield_stress_kPa = 173.2\n
+[output]\nout = "{tmp_path / out}"\nplots = false\ncheckpoint_every = {every}\nkeep_checkpoints = {keep}\n""")
+        return str(path)
+
+    def kept(out):
+        return sorted(int(re.search(r"(\d+)", p.stem).group(1)) for p in (tmp_path / out / "checkpoints").glob("*.json"))
+
+    assert main(["run", case("a"), "--no-progress"]) == 0
+    assert kept("a") == [2, 3, 4]  # every step, the last three kept
+    assert main(["run", case("b"), "--no-progress", "--keep-checkpoints", "1"]) == 0
+    assert kept("b") == [4]
+    assert main(["run", case("c"), "--no-progress", "--checkpoint-every", "2", "--keep-checkpoints", "5"]) == 0
+    assert kept("c") == [2, 4]
+
+
 def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     from femgran.cli import main
 
