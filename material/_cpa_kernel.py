@@ -13,6 +13,7 @@ from numba import njit, prange
 
 from material._cpa_local import (
     Point,
+    _rate_coupling,
     _ratios,
     _uniqueness_floor,
     floor_units,
@@ -110,6 +111,83 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
         pt = Point(sig_n[p], zero6, kap_n[p], soft[p], ws.eta_f, ws.shift, ws.strong, ws.select, ws.floor, 1.0,
                    ws.post, False, 0.0, 0.0, no_shift)
         out[p] = _uniqueness_floor(law, pt, ws, unit)
+
+
+#: The strengthening kinds of :func:`loading_tangents` (``CPAModel.loading_tangent``).
+STRENGTHENINGS = ("none", "plane", "sum", "plastic_strain")
+
+
+@njit(cache=True, error_model="numpy")
+def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, modulus, out):
+    """The rate-independent loading tangent of each of N committed states, into ``out`` (N, 6, 6) Mandel.
+
+    Every plane at or above its curve at sigma_n loads (:func:`material._cpa_local._rate_coupling`: its
+    eta' at the committed slip, the step stabilisation left out), at the rates x that solve H x = q,
+    q_a = b_a . C d_eps; the stress rate is C d_eps - sum_b (w_b / t) C m_b x_b. With the implicit gradient
+    (``m_over`` > 0) the planes past their peak take the gradient's shifted level ``nl_shift`` and, ebar
+    held fixed, their coupling through S: H_ab -= m eta'_a for a and b past their peak. ``kind`` adds a
+    strengthening of modulus ``modulus`` that a disturbance shorter than a nonlocal length would meet
+    (:data:`STRENGTHENINGS`): 1 ``plane``, H_g delta_ab on each plane's own slip [1/m]; 2 ``sum``, H_g on
+    the sum of the slips (one scalar field) [1/m]; 3 ``plastic_strain``, H_g (w_a / t)(w_b / t) m_a . m_b,
+    on the plastic strain rate the slips make together [m]. (The mean-stress cut-off is left out.)"""
+    N = sig_n.shape[0]
+    M = kap_n.shape[1]
+    ws = make_workspace(M)
+    lam6 = np.empty(6)
+    zero6 = np.zeros(6)
+    on = ws.basis
+    H = np.empty((M, M))
+    Q = np.empty((M, 6))
+    cm = np.empty((M, 6))
+    for p in range(N):
+        induced_tensor(eps_n[p], law.beta, law.alpha_hat, law.beta_hat, lam6)
+        plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
+        coupled = False
+        for a in range(M):
+            ws.shift[a] = law.cohesion[a] / ws.eta_f[a] + law.apex_stress
+            ws.strong[a] = kap_n[p, a] > law.A or (soft[p] > 0.0 and kap_n[p, a] >= law.kstar)
+            ws.post[a] = m_over > 0.0 and soft[p] > 0.0 and kap_n[p, a] >= law.kstar
+            coupled = coupled or ws.post[a]
+            ws.floor[a] = 0.0
+        pt = Point(sig_n[p], zero6, kap_n[p], soft[p], ws.eta_f, ws.shift, ws.strong, ws.select, ws.floor, 1.0,
+                   ws.post, coupled, 0.0, m_over, nl_shift[p])
+        n = _rate_coupling(law, pt, ws, on, False, False)
+        for i in range(6):
+            for j in range(6):
+                out[p, i, j] = law.stiff[i, j]
+        if n == 0:
+            continue
+        for ia in range(n):
+            a = on[ia]
+            wa = law.weights[a] * law.inv_t
+            for jb in range(n):
+                b = on[jb]
+                h = -ws.tableau[ia, n + jb]
+                if ws.post[a] and ws.post[b]:
+                    h -= m_over * ws.dk_try[a]  # (eta' of plane a, _rate_coupling's scratch)
+                if kind == 1 and ia == jb:
+                    h += modulus
+                elif kind == 2:
+                    h += modulus
+                elif kind == 3:
+                    acc = 0.0
+                    for i in range(6):
+                        acc += ws.mvec[i, a] * ws.mvec[i, b]
+                    h += modulus * wa * law.weights[b] * law.inv_t * acc
+                H[ia, jb] = h
+            for i in range(6):
+                qa = 0.0
+                ca = 0.0
+                for j in range(6):
+                    qa += law.stiff[i, j] * ws.bvec[j, a]
+                    ca += law.stiff[i, j] * ws.mvec[j, a]
+                Q[ia, i] = qa
+                cm[ia, i] = wa * ca
+        Y = np.linalg.solve(H[:n, :n], Q[:n])
+        for ib in range(n):
+            for i in range(6):
+                for j in range(6):
+                    out[p, i, j] -= cm[ib, i] * Y[ib, j]
 
 
 @njit(cache=True, error_model="numpy")

@@ -157,6 +157,19 @@ class Composite:
                 new[prefix + key] = full
         return new_stress, self._merge(new), tangent
 
+    def loading_tangent(self, stress, state, **options):
+        """:meth:`material.CPAModel.loading_tangent` of each law on its points (N, 3, 3, 3, 3); a law without
+        it (not a CPA law) raises ``TypeError`` naming it."""
+        s = as_stress_batch(stress, self._n(np.shape(stress)[0]))
+        out = np.empty((s.shape[0], 3, 3, 3, 3))
+        for k, (law, idx) in enumerate(zip(self.laws, self.index)):
+            if not hasattr(law, "loading_tangent"):
+                raise TypeError(f"laws[{k}] = {law!r}: has no loading_tangent (a CPA law's diagnostic)")
+            prefix = f"{k}:"
+            sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
+            out[idx] = law.loading_tangent(s[idx], sub, **options)
+        return out
+
 
 def _empty_like_tangent(D, n: int):
     """An uninitialised tangent of n points of the kind of ``D`` (an array or a CoupledTangent)."""

@@ -370,6 +370,48 @@ class CPAModel:
         _k.uniqueness_floors(self._law, _k.to_mandel(sig), eps6, kap, self._softening_scale(state, n), out)
         return out
 
+    def loading_tangent(self, stress, state: State, *, strengthening: str = "none", modulus: float = 0.0,
+                        mandel: bool = False) -> np.ndarray:
+        """The rate-independent loading tangent of each committed state (stress, state): (N, 3, 3, 3, 3), or
+        (N, 6, 6) Mandel with ``mandel``. A diagnostic of the law itself: every plane at or above its curve
+        loads with eta' at its committed slip, the step stabilisation left out (which :meth:`update` over a
+        zero step does not give: without the stabilisation it first relaxes the overstress a stabilised run
+        carries). With a ``nonlocal_length`` the planes past their peak carry the gradient's coupling with
+        ebar held fixed, the short-wave limit. Rice's condition on it
+        (:func:`material.localisation.ellipticity`) says where the law admits a band.
+
+        ``strengthening`` and ``modulus`` add to the rate problem the stiffness a gradient term would give a
+        disturbance shorter than its length (``docs/regularisation.md``, section 4): ``"plane"``, H_g on each
+        plane's own slip [1/m]; ``"sum"``, H_g on the sum of the slips, what one scalar field carries [1/m];
+        ``"plastic_strain"``, H_g (w_a / t)(w_b / t) m_a : m_b on the plastic strain the slips make together
+        [m]; ``"none"``. The mean-stress cut-off is left out."""
+        kinds = _k.STRENGTHENINGS
+        if strengthening not in kinds:
+            raise ValueError(f"strengthening = {strengthening!r}: allowed {', '.join(map(repr, kinds))}")
+        try:
+            modulus = float(modulus)
+        except (TypeError, ValueError):
+            raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0") from None
+        if not (np.isfinite(modulus) and modulus >= 0.0):
+            raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0")
+        n = np.asarray(state["kappa"]).shape[0] if "kappa" in state else 0
+        sig = as_stress_batch(stress, n)
+        check_state(state, n, _STATE_KEYS)
+        kap = np.ascontiguousarray(state["kappa"], dtype=float)
+        if kap.shape != (n, self.n_planes):
+            raise ValueError(f"state['kappa']: shape {kap.shape} does not match ({n}, {self.n_planes})")
+        m_over = self.over_nonlocal if self._nonlocal_length is not None else 0.0
+        shift = np.zeros_like(kap)
+        if m_over > 0.0 and "nonlocal_shift" in state:
+            shift = np.ascontiguousarray(state["nonlocal_shift"], dtype=float)
+            if shift.shape != kap.shape:
+                raise ValueError(f"state['nonlocal_shift']: shape {shift.shape} does not match {kap.shape}")
+        out = np.empty((n, 6, 6))
+        eps6 = _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float))
+        _k.loading_tangents(self._law, _k.to_mandel(sig), eps6, kap, self._softening_scale(state, n), shift,
+                            m_over, kinds.index(strengthening), modulus, out)
+        return out if mandel else _k.tangent_from_mandel(out)
+
     # ----------------------------------------------------------------------------- update
     @property
     def rate_dependent(self) -> bool:

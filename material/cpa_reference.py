@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["update_point", "residual", "ReferenceFailure", "follow_past_limits"]
+__all__ = ["update_point", "residual", "ReferenceFailure", "follow_past_limits", "loading_tangent"]
 
 _IJ = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
 _H = 1e-30  # complex step
@@ -160,6 +160,52 @@ def rate_coupling(law, sig_n, ef, kap_n, soft, level=None, cutoff=None):
         Cb = np.concatenate([Cb, ci[None] / (3 * law.K)])
         on = np.append(on, len(ratio))
     return on, Cb, H, st
+
+
+def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str = "none", modulus: float = 0.0):
+    """The rate-independent loading tangent (3, 3, 3, 3) of one committed state, by the definition
+    (:meth:`material.CPAModel.loading_tangent`): the planes on their curve (:func:`rate_coupling`) load at
+    the rates x of H x = (C b_a) : d_eps, sigma rate = C d_eps - sum_b (w_b / t) C m_b x_b; with the
+    implicit gradient the planes past their peak at their shifted level, and H_ab - m eta'_a between them
+    (ebar fixed); ``strengthening`` (``"plane"``, ``"sum"``, ``"plastic_strain"``) adds H_g delta_ab, H_g or
+    H_g (w_a / t)(w_b / t) m_a : m_b."""
+    law = _Law(model)
+    p = law.p
+    sig_n = np.asarray(stress, float).reshape(-1, 3, 3)[point]
+    eps_n = np.asarray(state["strain"], float).reshape(-1, 3, 3)[point]
+    kap_n = np.asarray(state["kappa"], float).reshape(-1, law.n.shape[0])[point]
+    gradient = getattr(model, "_nonlocal_length", None) is not None and p.softening_slip > 0
+    soft = p.softening_slip if (gradient or not model.regularise) else \
+        p.softening_slip * p.t / np.asarray(state.get("element_size", [p.t] * (point + 1)), float).reshape(-1)[point]
+    ef = law.eta_f(eps_n)
+    post = np.flatnonzero(kap_n >= p.kappa_instability) if gradient else np.zeros(0, int)
+    level = None
+    if post.size:
+        shift = np.asarray(state.get("nonlocal_shift", np.zeros((point + 1, kap_n.size))), float)
+        level = (post, shift.reshape(-1, kap_n.size)[point][post])
+    on, Cb, H, st = rate_coupling(law, sig_n, ef, kap_n, soft, level=level)
+    stiff = np.einsum("ij,kl->ijkl", np.eye(3), np.eye(3)) * law.lam + law.G * (
+        np.einsum("ik,jl->ijkl", np.eye(3), np.eye(3)) + np.einsum("il,jk->ijkl", np.eye(3), np.eye(3)))
+    if on.size == 0:
+        return stiff
+    _, _, g = law.planes(sig_n, ef)
+    m = 0.5 * (np.einsum("ai,aj->aij", g, law.n) + np.einsum("aj,ai->aij", g, law.n))[on]
+    wt = law.w[on] / p.t
+    # eta' of each plane: H's diagonal less its elastic part
+    etap = np.diag(H) - wt * np.einsum("aij,aij->a", Cb, m)
+    H = H.copy()
+    at = np.isin(on, post)
+    H[np.ix_(at, at)] -= model.over_nonlocal * etap[at][:, None]
+    if strengthening == "plane":
+        H += modulus * np.eye(on.size)
+    elif strengthening == "sum":
+        H += modulus
+    elif strengthening == "plastic_strain":
+        Mw = (m * wt[:, None, None]).reshape(on.size, 9)
+        H += modulus * Mw @ Mw.T
+    X = np.linalg.solve(H, Cb.reshape(on.size, 9)).reshape(on.size, 3, 3)
+    Cm = np.einsum("ijkl,akl->aij", stiff, m) * wt[:, None, None]
+    return stiff - np.einsum("aij,akl->ijkl", Cm, X)
 
 
 def minimal_stabilisation(law, sig_n, ef, kap_n, soft, unit, level=None):
