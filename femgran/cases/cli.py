@@ -359,6 +359,61 @@ def _print_ellipticity(problem, checkpoint) -> None:
               f"(least indicator {summary['ellipticity_min']:.3g})")
 
 
+def _ellipticity(args) -> int:
+    """``femgran ellipticity``: the points past Rice's onset at each checkpoint of a run folder."""
+    from femgran import checkpoint as ck
+    from femgran.cases.base import build_problem
+    from femgran.cases.casefile import load_case
+    from femgran.diagnostics import rice_indicator
+    from material.localisation import ONSET
+    from material.table import Table
+
+    folder = Path(args.run_folder)
+    if not (folder / "case.toml").is_file():
+        raise FileNotFoundError(f"ellipticity {folder}: no case.toml there (not a run folder of femgran)")
+    if (args.strengthening is None) != (not args.modulus):
+        raise ValueError(f"--strengthening {args.strengthening} --modulus {' '.join(map(str, args.modulus))}: give "
+                         "both (a kind and one or more moduli) or neither")
+    if any(not (np.isfinite(h) and h >= 0.0) for h in args.modulus):
+        raise ValueError(f"--modulus {' '.join(map(str, args.modulus))}: allowed finite numbers >= 0")
+    paths = sorted((folder / "checkpoints").glob("step_*.json"))
+    if not paths:
+        raise FileNotFoundError(f"ellipticity {folder}: no checkpoint in {folder / 'checkpoints'} (run it with "
+                                "--checkpoint-every N)")
+    case, material, _, _ = load_case(folder / "case.toml")
+    problem = build_problem(case, material)
+    law = problem.material
+    while not hasattr(law, "loading_tangent") and hasattr(law, "law"):
+        law = law.law  # (the undrained wrapper)
+    if not hasattr(law, "loading_tangent"):
+        raise TypeError(f"ellipticity {folder}: the run's material {law!r} is not a CPA law")
+    dim = problem.disc.dim
+    variants = [("law", "none", 0.0)] + [(f"{args.strengthening}_{h:g}", args.strengthening, h) for h in args.modulus]
+    rows = {"step": [], "t": [], "points": [], "committed": []} | {name: [] for name, _, _ in variants}
+    for path in paths:
+        arrays, info = ck.load(path)
+        state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
+        rows["step"].append(int(info["n_step"]))
+        rows["t"].append(float(info["t"]))
+        rows["points"].append(len(arrays["stress"]))
+        committed = rice_indicator(ck.committed_tangent(arrays), dim)
+        rows["committed"].append(-1 if committed is None else int(np.sum(committed < -ONSET)))
+        for name, kind, h in variants:
+            D = law.loading_tangent(arrays["stress"], state, strengthening=kind, modulus=h)
+            rows[name].append(int(np.sum(rice_indicator(D, dim) < -ONSET)))
+    desc = {"step": "converged step of the checkpoint", "t": "load factor", "points": "quadrature points",
+            "committed": "points past Rice's onset on the committed tangent (-1: none stored)",
+            "law": "the same on the law's rate-independent loading tangent"}
+    desc |= {name: f"the same with the strengthening {kind}, H_g = {h:g}" for name, kind, h in variants[1:]}
+    table = Table(rows, desc, {"run": str(folder)}, title="points past Rice's onset at each checkpoint")
+    out = table.write_csv(folder / "ellipticity.csv")
+    print(" ".join(f"{c:>{max(9, len(c))}}" for c in rows))
+    for i in range(len(rows["step"])):
+        print(" ".join(f"{rows[c][i]:>{max(9, len(c))}{'.4f' if c == 't' else ''}}" for c in rows))
+    print(f"-> {out}")
+    return 0
+
+
 def _band_history(args) -> int:
     from femgran.band import band_history
 
@@ -408,6 +463,21 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=None, help="where the replay writes (default RUN_FOLDER/replay)")
     _solver_flags(p)
     p.set_defaults(func=_replay)
+
+    p = subparsers.add_parser(
+        "ellipticity", help="where the law admits a band at each checkpoint, with and without a strengthening",
+        description="Rice's condition at each checkpoint of a run folder: on the committed tangent (the run's "
+                    "own, the step stabilisation's where it has one) and on the law's rate-independent loading "
+                    "tangent (material.CPAModel.loading_tangent), also with the stiffness a gradient term would give "
+                    "a short disturbance (--strengthening, --modulus). Writes RUN_FOLDER/ellipticity.csv and prints "
+                    "it: the points past the onset of each.")
+    p.add_argument("run_folder", help="a run folder with checkpoints (femgran run ... --checkpoint-every N)")
+    p.add_argument("--strengthening", choices=("plane", "sum", "plastic_strain"), default=None,
+                   help="plane: H_g on each plane's slip [1/m]; sum: on the sum of the slips [1/m]; plastic_strain: "
+                        "on the plastic strain [m] (docs/regularisation.md, section 4)")
+    p.add_argument("--modulus", type=float, nargs="+", default=[], metavar="H_G",
+                   help="the strengthening's modulus H_g, one or more")
+    p.set_defaults(func=_ellipticity)
 
     p = subparsers.add_parser("band", help="the band active in each window of axial strain after the peak",
                               description="The band active in each window of axial strain after the peak, both arms, "

@@ -130,6 +130,27 @@ settlement_m = 0.004\n[material]\nlaw = "von_mises"\nE_kPa = 30000.0\nnu = 0.3\n
     assert kept("c") == [2, 4]
 
 
+def test_the_ellipticity_command_counts_the_points_past_the_onset_at_each_checkpoint(tmp_path, capsys):
+    """``femgran ellipticity RUN``: at the thesis sand's footing (resolution 1, step stabilisation 0.1) the
+    law's own loading tangent has lost ellipticity at 2 of 630 points at the end where the committed
+    (stabilised) tangent has not, and a strengthening on the plastic strain (H_g = 1000 m) takes that away;
+    the table is written next to the run; a modulus without a kind is refused."""
+    from femgran.cli import main
+
+    out = tmp_path / "ft"
+    assert main(["footing", "--resolution", "1", "--steps", "4", "--settlement", "0.01", "--stabilisation", "0.1",
+                 "--no-progress", "--out", str(out), "--checkpoint-every", "2", "--keep-checkpoints", "5"]) == 0
+    assert main(["ellipticity", str(out), "--strengthening", "plastic_strain", "--modulus", "10", "1000"]) == 0
+    t = read_table(out / "ellipticity.csv")
+    assert list(t["step"]) == [2, 4] and list(t["points"]) == [630, 630]
+    assert list(t["committed"]) == [0, 0] and list(t["law"]) == [0, 2]
+    assert list(t["plastic_strain_1000"]) == [0, 0]
+    capsys.readouterr()
+    assert main(["ellipticity", str(out), "--modulus", "10"]) == 2
+    assert "give both (a kind and one or more moduli) or neither" in capsys.readouterr().err
+    assert main(["ellipticity", str(tmp_path)]) == 2
+
+
 def test_replay_reruns_the_step_at_which_a_run_stopped(tmp_path, capsys):
     from femgran.cli import main
 
