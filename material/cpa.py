@@ -353,18 +353,23 @@ class CPAModel:
             return np.full(n, p.softening_slip)
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
-    def uniqueness_floor(self, stress, state: State) -> np.ndarray:
-        """The least mu of the step stabilisation for which the rate problem of each committed state (stress,
-        state) is uniquely solvable by the sufficient condition of the ``"minimal"`` stabilisation, (N,):
-        0 where the thesis's law has one response to every strain rate, and otherwise how far the point is from
-        it (``docs/cpa_law.md``, section 4). A diagnostic of where and how much the law loses uniqueness (what
-        ``femgran replay`` prints for a stopped run); it does not see planes that join within a step."""
+    def _committed(self, stress, state: State):
+        """(N, stress (N, 3, 3), kappa (N, M)) of committed states, checked (the diagnostics' input)."""
         n = np.asarray(state["kappa"]).shape[0] if "kappa" in state else 0
         sig = as_stress_batch(stress, n)
         check_state(state, n, _STATE_KEYS)
         kap = np.ascontiguousarray(state["kappa"], dtype=float)
         if kap.shape != (n, self.n_planes):
             raise ValueError(f"state['kappa']: shape {kap.shape} does not match ({n}, {self.n_planes})")
+        return n, sig, kap
+
+    def uniqueness_floor(self, stress, state: State) -> np.ndarray:
+        """The least mu of the step stabilisation for which the rate problem of each committed state (stress,
+        state) is uniquely solvable by the sufficient condition of the ``"minimal"`` stabilisation, (N,):
+        0 where the thesis's law has one response to every strain rate, and otherwise how far the point is from
+        it (``docs/cpa_law.md``, section 4). A diagnostic of where and how much the law loses uniqueness (what
+        ``femgran replay`` prints for a stopped run); it does not see planes that join within a step."""
+        n, sig, kap = self._committed(stress, state)
         out = np.empty(n)
         eps6 = _k.to_mandel(np.ascontiguousarray(state["strain"], dtype=float))
         _k.uniqueness_floors(self._law, _k.to_mandel(sig), eps6, kap, self._softening_scale(state, n), out)
@@ -394,12 +399,7 @@ class CPAModel:
             raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0") from None
         if not (np.isfinite(modulus) and modulus >= 0.0):
             raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0")
-        n = np.asarray(state["kappa"]).shape[0] if "kappa" in state else 0
-        sig = as_stress_batch(stress, n)
-        check_state(state, n, _STATE_KEYS)
-        kap = np.ascontiguousarray(state["kappa"], dtype=float)
-        if kap.shape != (n, self.n_planes):
-            raise ValueError(f"state['kappa']: shape {kap.shape} does not match ({n}, {self.n_planes})")
+        n, sig, kap = self._committed(stress, state)
         m_over = self.over_nonlocal if self._nonlocal_length is not None else 0.0
         shift = np.zeros_like(kap)
         if m_over > 0.0 and "nonlocal_shift" in state:
