@@ -129,7 +129,8 @@ def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, mod
     strengthening of modulus ``modulus`` that a disturbance shorter than a nonlocal length would meet
     (:data:`STRENGTHENINGS`): 1 ``plane``, H_g delta_ab on each plane's own slip [1/m]; 2 ``sum``, H_g on
     the sum of the slips (one scalar field) [1/m]; 3 ``plastic_strain``, H_g (w_a / t)(w_b / t) m_a . m_b,
-    on the plastic strain rate the slips make together [m]. (The mean-stress cut-off is left out.)"""
+    on the plastic strain rate the slips make together [m]. (The mean-stress cut-off is left out.) A point
+    whose H is singular gets NaN."""
     N = sig_n.shape[0]
     M = kap_n.shape[1]
     ws = make_workspace(M)
@@ -183,7 +184,11 @@ def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, mod
                     ca += law.stiff[i, j] * ws.mvec[j, a]
                 Q[ia, i] = qa
                 cm[ia, i] = wa * ca
-        Y = np.linalg.solve(H[:n, :n], Q[:n])
+        try:
+            Y = np.linalg.solve(H[:n, :n], Q[:n])
+        except Exception:  # a singular rate problem: no loading tangent at this point
+            out[p, :, :] = np.nan
+            continue
         for ib in range(n):
             for i in range(6):
                 for j in range(6):

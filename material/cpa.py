@@ -389,7 +389,8 @@ class CPAModel:
         disturbance shorter than its length (``docs/regularisation.md``, section 4): ``"plane"``, H_g on each
         plane's own slip [1/m]; ``"sum"``, H_g on the sum of the slips, what one scalar field carries [1/m];
         ``"plastic_strain"``, H_g (w_a / t)(w_b / t) m_a : m_b on the plastic strain the slips make together
-        [m]; ``"none"``. The mean-stress cut-off is left out."""
+        [m]; ``"none"``. The mean-stress cut-off is left out. A point whose rate problem is singular (no
+        loading tangent) gets NaN."""
         kinds = _k.STRENGTHENINGS
         if strengthening not in kinds:
             raise ValueError(f"strengthening = {strengthening!r}: allowed {', '.join(map(repr, kinds))}")

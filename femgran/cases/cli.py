@@ -389,7 +389,8 @@ def _ellipticity(args) -> int:
         raise TypeError(f"ellipticity {folder}: the run's material {law!r} is not a CPA law")
     dim = problem.disc.dim
     variants = [("law", "none", 0.0)] + [(f"{args.strengthening}_{h:g}", args.strengthening, h) for h in args.modulus]
-    rows = {"step": [], "t": [], "points": [], "committed": []} | {name: [] for name, _, _ in variants}
+    rows = {"step": [], "t": [], "points": [], "committed": []} | {name: [] for name, _, _ in variants} | \
+        {"singular": []}
     for path in paths:
         arrays, info = ck.load(path)
         state = {k[len("state__"):]: arrays[k] for k in arrays if k.startswith("state__")}
@@ -398,13 +399,19 @@ def _ellipticity(args) -> int:
         rows["points"].append(len(arrays["stress"]))
         committed = rice_indicator(ck.committed_tangent(arrays), dim)
         rows["committed"].append(-1 if committed is None else int(np.sum(committed < -ONSET)))
+        singular = 0
         for name, kind, h in variants:
             D = law.loading_tangent(arrays["stress"], state, strengthening=kind, modulus=h)
-            rows[name].append(int(np.sum(rice_indicator(D, dim) < -ONSET)))
+            nan = np.isnan(D).reshape(len(D), -1).any(axis=1)
+            singular = max(singular, int(nan.sum()))
+            rows[name].append(int(np.sum(rice_indicator(np.where(nan[:, None, None, None, None], 0.0, D), dim)[~nan]
+                                         < -ONSET)))
+        rows["singular"].append(singular)
     desc = {"step": "converged step of the checkpoint", "t": "load factor", "points": "quadrature points",
             "committed": "points past Rice's onset on the committed tangent (-1: none stored)",
             "law": "the same on the law's rate-independent loading tangent"}
     desc |= {name: f"the same with the strengthening {kind}, H_g = {h:g}" for name, kind, h in variants[1:]}
+    desc["singular"] = "points whose rate problem is singular (no loading tangent; not counted above), most of any column"
     table = Table(rows, desc, {"run": str(folder)}, title="points past Rice's onset at each checkpoint")
     out = table.write_csv(folder / "ellipticity.csv")
     print(" ".join(f"{c:>{max(9, len(c))}}" for c in rows))
