@@ -114,7 +114,7 @@ def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
 
 
 #: The strengthening kinds of :func:`loading_tangents` (``CPAModel.loading_tangent``).
-STRENGTHENINGS = ("none", "plane", "sum", "plastic_strain")
+STRENGTHENINGS = ("none", "plane", "sum", "plastic_strain", "back_stress")
 
 
 @njit(cache=True, error_model="numpy")
@@ -129,7 +129,10 @@ def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, mod
     strengthening of modulus ``modulus`` that a disturbance shorter than a nonlocal length would meet
     (:data:`STRENGTHENINGS`): 1 ``plane``, H_g delta_ab on each plane's own slip [1/m]; 2 ``sum``, H_g on
     the sum of the slips (one scalar field) [1/m]; 3 ``plastic_strain``, H_g (w_a / t)(w_b / t) m_a . m_b,
-    on the plastic strain rate the slips make together [m]. (The mean-stress cut-off is left out.) A point
+    on the plastic strain rate the slips make together [m]; 4 ``back_stress``, H_g (w_b / t) b_a . m_b, a
+    back stress H_g (eps_p - ebar_p) [kPa] that every plane sees (its ratio taken at sigma - X): with
+    associated flow (m_b = sigma~_b b_b) it keeps the rate problem symmetric after the row scaling
+    w_a sigma~_a, where ``plastic_strain`` does not. (The mean-stress cut-off is left out.) A point
     whose H is singular gets NaN."""
     N = sig_n.shape[0]
     M = kap_n.shape[1]
@@ -175,6 +178,11 @@ def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, mod
                     for i in range(6):
                         acc += ws.mvec[i, a] * ws.mvec[i, b]
                     h += modulus * wa * law.weights[b] * law.inv_t * acc
+                elif kind == 4:
+                    acc = 0.0
+                    for i in range(6):
+                        acc += ws.bvec[i, a] * ws.mvec[i, b]
+                    h += modulus * law.weights[b] * law.inv_t * acc
                 H[ia, jb] = h
             for i in range(6):
                 qa = 0.0

@@ -389,7 +389,10 @@ class CPAModel:
         disturbance shorter than its length (``docs/regularisation.md``, section 4): ``"plane"``, H_g on each
         plane's own slip [1/m]; ``"sum"``, H_g on the sum of the slips, what one scalar field carries [1/m];
         ``"plastic_strain"``, H_g (w_a / t)(w_b / t) m_a : m_b on the plastic strain the slips make together
-        [m]; ``"none"``. The mean-stress cut-off is left out. A point whose rate problem is singular (no
+        [m]; ``"back_stress"``, a back stress H_g (eps_p - ebar_p) [kPa] that every plane's ratio sees, which
+        keeps an associated law's rate problem symmetric (``plastic_strain`` does not: on the associated
+        footing it makes 6-36 points non-elliptic that the law alone keeps elliptic); ``"none"``.
+        The mean-stress cut-off is left out. A point whose rate problem is singular (no
         loading tangent) gets NaN."""
         kinds = _k.STRENGTHENINGS
         if strengthening not in kinds:

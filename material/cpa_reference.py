@@ -167,8 +167,8 @@ def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str 
     (:meth:`material.CPAModel.loading_tangent`): the planes on their curve (:func:`rate_coupling`) load at
     the rates x of H x = (C b_a) : d_eps, sigma rate = C d_eps - sum_b (w_b / t) C m_b x_b; with the
     implicit gradient the planes past their peak at their shifted level, and H_ab - m eta'_a between them
-    (ebar fixed); ``strengthening`` (``"plane"``, ``"sum"``, ``"plastic_strain"``) adds H_g delta_ab, H_g or
-    H_g (w_a / t)(w_b / t) m_a : m_b."""
+    (ebar fixed); ``strengthening`` (``"plane"``, ``"sum"``, ``"plastic_strain"``, ``"back_stress"``) adds
+    H_g delta_ab, H_g, H_g (w_a / t)(w_b / t) m_a : m_b or H_g (w_b / t) b_a : m_b."""
     law = _Law(model)
     p = law.p
     sig_n = np.asarray(stress, float).reshape(-1, 3, 3)[point]
@@ -203,6 +203,10 @@ def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str 
     elif strengthening == "plastic_strain":
         Mw = (m * wt[:, None, None]).reshape(on.size, 9)
         H += modulus * Mw @ Mw.T
+    elif strengthening == "back_stress":  # b_a = C^-1 (C b_a)
+        b = (Cb - law.lam / (3 * law.lam + 2 * law.G) * np.trace(Cb, axis1=1, axis2=2)[:, None, None]
+             * np.eye(3)) / (2 * law.G)
+        H += modulus * np.einsum("aij,bij->ab", b, m) * wt[None, :]
     X = np.linalg.solve(H, Cb.reshape(on.size, 9)).reshape(on.size, 3, 3)
     Cm = np.einsum("ijkl,akl->aij", stiff, m) * wt[:, None, None]
     return stiff - np.einsum("aij,akl->ijkl", Cm, X)

@@ -479,9 +479,10 @@ def register(subparsers) -> None:
                     "a short disturbance (--strengthening, --modulus). Writes RUN_FOLDER/ellipticity.csv and prints "
                     "it: the points past the onset of each.")
     p.add_argument("run_folder", help="a run folder with checkpoints (femgran run ... --checkpoint-every N)")
-    p.add_argument("--strengthening", choices=("plane", "sum", "plastic_strain"), default=None,
+    p.add_argument("--strengthening", choices=("plane", "sum", "plastic_strain", "back_stress"), default=None,
                    help="plane: H_g on each plane's slip [1/m]; sum: on the sum of the slips [1/m]; plastic_strain: "
-                        "on the plastic strain [m] (docs/regularisation.md, section 4)")
+                        "on the plastic strain [m]; back_stress: a back stress H_g (eps_p - ebar_p) [kPa] "
+                        "(docs/regularisation.md, section 4)")
     p.add_argument("--modulus", type=float, nargs="+", default=[], metavar="H_G",
                    help="the strengthening's modulus H_g, one or more")
     p.set_defaults(func=_ellipticity)

@@ -134,7 +134,8 @@ def test_the_ellipticity_command_counts_the_points_past_the_onset_at_each_checkp
     """``femgran ellipticity RUN``: at the thesis sand's footing (resolution 1, step stabilisation 0.1) the
     law's own loading tangent has lost ellipticity at 2 of 630 points at the end where the committed
     (stabilised) tangent has not, and a strengthening on the plastic strain (H_g = 1000 m) takes that away;
-    the table is written next to the run; a modulus without a kind is refused."""
+    with associated flow the law keeps ellipticity, which a back stress keeps and a modulus on the plastic
+    strain does not; the table is written next to the run; a modulus without a kind is refused."""
     from femgran.cli import main
 
     out = tmp_path / "ft"
@@ -145,6 +146,17 @@ def test_the_ellipticity_command_counts_the_points_past_the_onset_at_each_checkp
     assert list(t["step"]) == [2, 4] and list(t["points"]) == [630, 630]
     assert list(t["committed"]) == [0, 0] and list(t["law"]) == [0, 2]
     assert list(t["plastic_strain_1000"]) == [0, 0]
+    # with associated flow (no stabilisation) the law keeps ellipticity; a modulus on the plastic strain does
+    # not keep the rate problem symmetric and costs 2 points, a back stress keeps it
+    assoc = tmp_path / "assoc"
+    assert main(["footing", "--resolution", "1", "--steps", "4", "--settlement", "0.01", "--set", "eta_c_ratio=0",
+                 "--no-progress", "--out", str(assoc), "--checkpoint-every", "2", "--keep-checkpoints", "5"]) == 0
+    assert main(["ellipticity", str(assoc), "--strengthening", "plastic_strain", "--modulus", "1000"]) == 0
+    t = read_table(assoc / "ellipticity.csv")
+    assert list(t["law"]) == [0, 0] and list(t["plastic_strain_1000"]) == [0, 2]
+    assert main(["ellipticity", str(assoc), "--strengthening", "back_stress", "--modulus", "1e3", "1e5"]) == 0
+    t = read_table(assoc / "ellipticity.csv")
+    assert list(t["back_stress_1000"]) == [0, 0] and list(t["back_stress_100000"]) == [0, 0]
     capsys.readouterr()
     assert main(["ellipticity", str(out), "--modulus", "10"]) == 2
     assert "give both (a kind and one or more moduli) or neither" in capsys.readouterr().err

@@ -156,7 +156,7 @@ def test_the_loading_tangent_of_a_committed_state_is_the_reference_s_and_the_sma
     tangent of the path's last small step (indicator -0.0038 against -0.0036: a band can form there)."""
     from material import cpa_reference as ref
 
-    kinds = (("none", 0.0), ("plane", 300.0), ("sum", 1000.0), ("plastic_strain", 100.0))
+    kinds = (("none", 0.0), ("plane", 300.0), ("sum", 1000.0), ("plastic_strain", 100.0), ("back_stress", 6e4))
     model, res, sig, state = _soft_sand_state(0.0245, 98)
     for kind, hg in kinds:
         D = model.loading_tangent(sig, state, strengthening=kind, modulus=hg)[0]
@@ -179,8 +179,8 @@ def test_a_strengthening_against_the_neighbourhood_restores_the_ellipticity_the_
     """Past Rice's onset before the peak (alpha = 30, 2.45 %) the law's loading tangent admits a band
     (indicator -0.0038); the stiffness a gradient term gives a short disturbance takes it away, the more
     the larger its modulus (measured: 0.041 / 0.091 with 300 / 1000 per metre on each plane's slip, 0.32 /
-    0.45 with 100 / 1000 m on the plastic strain). (On the 24-element biaxial run the one scalar field's
-    "sum" does not: docs/regularisation.md, section 4.)"""
+    0.45 with 100 / 1000 m on the plastic strain, 0.020 to 0.345 with a back stress of 1e3 to 1e5 kPa). (On
+    the 24-element biaxial run the one scalar field's "sum" does not: docs/regularisation.md, section 4.)"""
     model, _, sig, state = _soft_sand_state(0.0245, 98)
 
     def indicator(kind="none", hg=0.0):
@@ -190,6 +190,8 @@ def test_a_strengthening_against_the_neighbourhood_restores_the_ellipticity_the_
     assert indicator() < 0.0
     assert 0.0 < indicator("plane", 300.0) < indicator("plane", 1000.0)
     assert 0.3 < indicator("plastic_strain", 100.0) < indicator("plastic_strain", 1000.0)
+    # a back stress H_g (eps_p - ebar_p) [kPa]: 0.020 / 0.143 / 0.345 for 1e3 / 1e4 / 1e5 kPa
+    assert 0.0 < indicator("back_stress", 1e3) < indicator("back_stress", 1e4) < indicator("back_stress", 1e5)
 
 
 @pytest.mark.parametrize("kwargs, message", [
