@@ -57,6 +57,12 @@ class _Law:
         self.K = p.bulk_modulus
         self.b = APEX_ROUNDING * p.apex_stress
 
+    def stiffness(self):
+        """The elastic stiffness C (3, 3, 3, 3)."""
+        I = np.eye(3)
+        return self.lam * np.einsum("ij,kl->ijkl", I, I) + self.G * (np.einsum("ik,jl->ijkl", I, I)
+                                                                    + np.einsum("il,jk->ijkl", I, I))
+
     def eta_f(self, strain):
         """eta_f of every plane for the total strain (3, 3), complex allowed (eqs. 2.4, 3.8, 3.15)."""
         p = self.p
@@ -162,6 +168,15 @@ def rate_coupling(law, sig_n, ef, kap_n, soft, level=None, cutoff=None):
     return on, Cb, H, st
 
 
+def _softening_scale(model, state, point: int, gradient: bool) -> float:
+    """The point's softening slip scale: softening_slip, or softening_slip t / h under the crack band (0: none)."""
+    p = model.params
+    if p.softening_slip == 0:
+        return 0.0
+    h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)), float).reshape(-1)[point]
+    return p.softening_slip * p.t / h if (model.regularise and not gradient) else p.softening_slip
+
+
 def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str = "none", modulus: float = 0.0):
     """The rate-independent loading tangent (3, 3, 3, 3) of one committed state, by the definition
     (:meth:`material.CPAModel.loading_tangent`): the planes on their curve (:func:`rate_coupling`) load at
@@ -175,8 +190,7 @@ def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str 
     eps_n = np.asarray(state["strain"], float).reshape(-1, 3, 3)[point]
     kap_n = np.asarray(state["kappa"], float).reshape(-1, law.n.shape[0])[point]
     gradient = getattr(model, "_nonlocal_length", None) is not None and p.softening_slip > 0
-    soft = p.softening_slip if (gradient or not model.regularise) else \
-        p.softening_slip * p.t / np.asarray(state.get("element_size", [p.t] * (point + 1)), float).reshape(-1)[point]
+    soft = _softening_scale(model, state, point, gradient)
     ef = law.eta_f(eps_n)
     post = np.flatnonzero(kap_n >= p.kappa_instability) if gradient else np.zeros(0, int)
     level = None
@@ -184,8 +198,7 @@ def loading_tangent(model, stress, state, point: int = 0, *, strengthening: str 
         shift = np.asarray(state.get("nonlocal_shift", np.zeros((point + 1, kap_n.size))), float)
         level = (post, shift.reshape(-1, kap_n.size)[point][post])
     on, Cb, H, st = rate_coupling(law, sig_n, ef, kap_n, soft, level=level)
-    stiff = np.einsum("ij,kl->ijkl", np.eye(3), np.eye(3)) * law.lam + law.G * (
-        np.einsum("ik,jl->ijkl", np.eye(3), np.eye(3)) + np.einsum("il,jk->ijkl", np.eye(3), np.eye(3)))
+    stiff = law.stiffness()
     if on.size == 0:
         return stiff
     _, _, g = law.planes(sig_n, ef)
@@ -363,11 +376,8 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     sig_n = np.asarray(stress, float).reshape(-1, 3, 3)[point]
     eps_n = np.asarray(state["strain"], float)[point]
     kap_n = np.asarray(state["kappa"], float)[point]
-    soft = 0.0
     gradient = d_nonlocal is not None
-    if p.softening_slip > 0:
-        h = np.asarray(state.get("element_size", np.full(len(state["kappa"]), p.t)))[point]
-        soft = p.softening_slip * p.t / h if (model.regularise and not gradient) else p.softening_slip
+    soft = _softening_scale(model, state, point, gradient)
     strong = np.flatnonzero((kap_n > p.A) | ((soft > 0) & (kap_n >= p.kappa_instability)))
     grad, e_n = None, 0.0
     if gradient:
@@ -400,8 +410,7 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
     ef = law.eta_f(eps_n + de)
     ratio, st, _ = law.planes(trial, ef)
     eta_n = law.hardening(kap_n, ef, soft)
-    stiff = np.einsum("ij,kl->ijkl", np.eye(3), np.eye(3)) * law.lam + law.G * (
-        np.einsum("ik,jl->ijkl", np.eye(3), np.eye(3)) + np.einsum("il,jk->ijkl", np.eye(3), np.eye(3)))
+    stiff = law.stiffness()
     if grad is not None:  # the planes past their peak at the nonlocal field's level
         at = strong[grad[0]]
         eta_n[at] = law.softening(kap_n[at] + grad[1], ef[at], soft)
