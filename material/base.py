@@ -59,6 +59,7 @@ import numpy as np
 __all__ = [
     "step_fraction",
     "Material",
+    "BackStressTangent",
     "CoupledTangent",
     "STATUS_OK",
     "STATUS_SUBSTEPPED",
@@ -86,6 +87,23 @@ class CoupledTangent(NamedTuple):
     ``dstress_dstrain`` (N, 3, 3, 3, 3) kPa, ``dstress_dnonlocal`` (N, 3, 3) kPa, ``local`` (N,) the local
     measure e at the end of the step, ``dlocal_dstrain`` (N, 3, 3) and ``dlocal_dnonlocal`` (N,): all
     derivatives of the end-of-step values with respect to the step's increments of strain and of ebar.
+    """
+
+    dstress_dstrain: np.ndarray
+    dstress_dnonlocal: np.ndarray
+    local: np.ndarray
+    dlocal_dstrain: np.ndarray
+    dlocal_dnonlocal: np.ndarray
+
+
+class BackStressTangent(NamedTuple):
+    """The response of a law with a gradient back stress at N points, for a coupled (u, ebar_p) Newton system
+    whose nonlocal field is the plastic strain tensor (e.g. :class:`material.CPAModel` with a
+    ``back_stress_modulus``).
+
+    ``dstress_dstrain`` and ``dstress_dnonlocal`` (N, 3, 3, 3, 3) kPa, ``local`` (N, 3, 3) the plastic strain
+    eps_p at the end of the step, ``dlocal_dstrain`` and ``dlocal_dnonlocal`` (N, 3, 3, 3, 3): the derivatives
+    of the end-of-step values with respect to the step's increments of strain and of ebar_p.
     """
 
     dstress_dstrain: np.ndarray

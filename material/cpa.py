@@ -64,7 +64,7 @@ from material import _cpa_kernel as _k
 from material._cpa_local import Law, Limits, Options
 from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
-from material.base import CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.base import BackStressTangent, CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
 from material.elastic import mandel_elastic
 from material.parameters import CPAParameters, load_preset, parameters_from_dict
 from material.tensors import to_mandel
@@ -148,6 +148,14 @@ class CPAModel:
     over_nonlocal : float
         m > 1 of the gradient: a plane past its peak softens with kappa + m t (ebar - e), e the point's
         post-peak slip strain (default 2).
+    back_stress_modulus, back_stress_length : float, optional
+        H_g [kPa] >= 0 and l_b [m] > 0 of a gradient back stress X = H_g (eps_p - ebar_p): every plane's
+        ratio is taken at sigma - X, with ebar_p the nonlocal plastic strain tensor,
+        ebar_p - l_b^2 lap(ebar_p) = eps_p (``docs/regularisation.md``, section 5). In a homogeneous state
+        ebar_p = eps_p and X = 0: the element tests and the calibration are the law's. :meth:`update` takes the
+        step's increment of ebar_p (``d_nonlocal_plastic_strain``); 0 (default): no back stress. Not combined
+        with ``nonlocal_length``, nor yet with induced anisotropy (``beta`` != 0). The FE cases do not solve
+        for ebar_p yet.
     """
 
     TANGENTS = ("tensor", "mandel")  # forms of the tangent :meth:`update` returns
@@ -156,7 +164,8 @@ class CPAModel:
                  maxit: int = 25, max_halvings: int = 12, tol: float = 1e-12, stabilisation: float | str = 0.0,
                  relaxation_time: float | None = None, replay_dir: str | os.PathLike | None = None,
                  threads: int | None = None, regularise: bool = True,
-                 nonlocal_length: float | None = None, over_nonlocal: float = 2.0):
+                 nonlocal_length: float | None = None, over_nonlocal: float = 2.0,
+                 back_stress_modulus: float = 0.0, back_stress_length: float | None = None):
         from material.planes import integration_rule
 
         if isinstance(params, str):
@@ -178,6 +187,8 @@ class CPAModel:
                 raise ValueError(f"nonlocal_length = {nonlocal_length!r}: regularises the post-peak softening, but "
                                  f"softening_slip = {params.softening_slip!r}; allowed with softening_slip > 0 "
                                  "(and zeta > 1)")
+        back_stress_modulus, back_stress_length = _check_back_stress(back_stress_modulus, back_stress_length,
+                                                                     nonlocal_length, float(params.beta))
         if not (np.isfinite(float(over_nonlocal)) and float(over_nonlocal) > 1.0):
             raise ValueError(f"over_nonlocal = {over_nonlocal!r}: must be > 1 (with 1 the band keeps narrowing)")
         self._nonlocal_length = None if nonlocal_length is None else float(nonlocal_length)
@@ -207,6 +218,10 @@ class CPAModel:
                         float(p.kappa_instability), float(p.residual_ratio), float(p.compaction_stress),
                         float(p.bulk_modulus),
                         self._comp, self._stiff)
+        self.back_stress_modulus = back_stress_modulus
+        self._back_stress_length = back_stress_length
+        self._shifted = None if back_stress_modulus == 0.0 else _ShiftedElasticity(self._law, p.E, p.nu,
+                                                                                   back_stress_modulus)
 
     def replace(self, *, params: CPAParameters | None = None, axes=None, **options) -> "CPAModel":
         """A new law with the same rule, axes and options as this one except those given (``params``,
@@ -215,7 +230,8 @@ class CPAModel:
                   tol=self.options.tol, stabilisation=self.options.stabilisation,
                   relaxation_time=self.options.relaxation_time, replay_dir=self.replay_dir,
                   threads=self.threads, regularise=self.regularise, nonlocal_length=self._nonlocal_length,
-                  over_nonlocal=self.over_nonlocal)
+                  over_nonlocal=self.over_nonlocal, back_stress_modulus=self.back_stress_modulus,
+                  back_stress_length=self._back_stress_length)
         kw.update(options)
         return CPAModel(self.params if params is None else params, axes=self.axes if axes is None else axes, **kw)
 
@@ -236,6 +252,13 @@ class CPAModel:
         if self._nonlocal_length is None:
             raise AttributeError("nonlocal_length: this CPA law has no gradient regularisation")
         return self._nonlocal_length
+
+    @property
+    def back_stress_length(self) -> float:
+        """The back stress's length l_b [m] (``AttributeError`` for a law without the back stress)."""
+        if self._back_stress_length is None:
+            raise AttributeError("back_stress_length: this CPA law has no gradient back stress")
+        return self._back_stress_length
 
     @property
     def relaxation_time(self) -> float | None:
@@ -341,6 +364,8 @@ class CPAModel:
             "element_size": h,
             **({} if self._nonlocal_length is None else {"nonlocal": np.zeros(n), "post_peak_strain": np.zeros(n),
                                                           "nonlocal_shift": np.zeros((n, M))}),
+            **({} if self._shifted is None else {"nonlocal_plastic_strain": np.zeros((n, 3, 3)),
+                                                 "back_stress": np.zeros((n, 3, 3))}),
         }
 
     def _softening_scale(self, state: State, n: int) -> np.ndarray:
@@ -423,7 +448,7 @@ class CPAModel:
         return self.options.stabilisation == MINIMAL or self.options.stabilisation > 0.0
 
     def update(self, d_strain, stress, state: State, *, tangent: bool | str = True, d_nonlocal=None,
-               step_fraction: float = 1.0):
+               step_fraction: float = 1.0, d_nonlocal_plastic_strain=None):
         """Integrate the law over a strain increment at N Gauss points.
 
         Parameters
@@ -445,6 +470,11 @@ class CPAModel:
             default one nominal step): the FE solver and the element drivers pass it to a
             :attr:`rate_dependent` law (:func:`material.base.step_fraction`). Without the stabilisation it
             changes nothing.
+        d_nonlocal_plastic_strain : None or (N, 3, 3)
+            A law with a ``back_stress_modulus``: the step's increment of the nonlocal plastic strain ebar_p at
+            the points; ``state["nonlocal_plastic_strain"]`` holds the committed ebar_p and the tangent is a
+            :class:`material.base.BackStressTangent`. Without it the law is local (ebar_p = eps_p, no back
+            stress) and ``state["nonlocal_plastic_strain"]`` follows eps_p.
 
         Returns
         -------
@@ -476,16 +506,94 @@ class CPAModel:
         if not (np.isfinite(f) and f > 0.0):
             raise ValueError(f"step_fraction = {step_fraction!r}: allowed a finite number > 0 (the step's size in "
                              f"relaxation times)")
-        new_sig, new_state, tan = self._integrate(de, sig, state, tangent, d_nonlocal, f)
+        if d_nonlocal_plastic_strain is not None:
+            dnp = self._check_nonlocal_plastic_strain(d_nonlocal_plastic_strain, n, tangent, state)
+            new_sig, new_state, tan = self._integrate_back_stress(de, sig, state, tangent, dnp, f)
+        else:
+            new_sig, new_state, tan = self._integrate(de, sig, state, tangent, d_nonlocal, f)
+            if self._shifted is not None:  # the local law: ebar_p = eps_p, no back stress
+                new_state["nonlocal_plastic_strain"] = new_state["plastic_strain"].copy()
+                new_state["back_stress"] = np.zeros_like(new_sig)
         failed = np.flatnonzero(new_state["status"] == STATUS_FAILED)
         if failed.size:
-            self._record_failure(de, sig, state, failed, d_nonlocal, f)
+            self._record_failure(de, sig, state, failed, d_nonlocal, f, d_nonlocal_plastic_strain)
         return new_sig, new_state, tan
 
-    def _integrate(self, de, sig, state, tangent, d_nonlocal, f, max_halvings=None, limits=True):
+    def _check_nonlocal_plastic_strain(self, value, n, tangent, state) -> np.ndarray:
+        """``d_nonlocal_plastic_strain`` of :meth:`update`, validated: (N, 3, 3) finite, symmetric."""
+        if self._shifted is None:
+            raise ValueError("d_nonlocal_plastic_strain: this CPA law has no back stress (back_stress_modulus = 0); "
+                             "allowed only with back_stress_modulus > 0")
+        d = np.asarray(value, dtype=float)
+        if d.shape != (n, 3, 3) or not np.all(np.isfinite(d)):
+            raise ValueError(f"d_nonlocal_plastic_strain: expected a finite array of shape ({n}, 3, 3), got "
+                             f"shape {d.shape}" + ("" if d.shape != (n, 3, 3) else " with non-finite values"))
+        if not np.allclose(d, np.swapaxes(d, 1, 2), rtol=0.0, atol=1e-12 * max(1.0, float(np.abs(d).max()))):
+            raise ValueError("d_nonlocal_plastic_strain: not symmetric; allowed symmetric (N, 3, 3) tensors")
+        if tangent == "mandel":
+            raise ValueError("tangent = 'mandel': the coupled tangent of d_nonlocal_plastic_strain comes in tensor "
+                             "form; allowed True or False")
+        check_state(state, n, ("nonlocal_plastic_strain",))
+        return d
+
+    def _integrate_back_stress(self, de, sig, state, tangent, d_np, f):
+        """One step with the gradient back stress X = H_g (eps_p - ebar_p), ebar_p = the committed value plus
+        ``d_np`` (validated input).
+
+        Every plane sees s = sigma - X. Within the step X = H_g (eps_p,n + d_eps_p - ebar_p) with
+        d_eps_p = d_eps - C d_sigma, so s - s_n = D d_eps - (D + H_g I) d_eps_p: the law's own step from
+        s_n = sigma_n - X_n with the stiffer elasticity D^ = D + H_g I (K + H_g / 3, G + H_g / 2) and the
+        strain increment d_e^ = C^ D d_eps. The kernel runs unchanged on those variables and
+        sigma = s + H_g (eps_p - ebar_p). With A = d s / d d_e^ the kernel's tangent and Q = C^ D:
+
+            d sigma / d d_eps = (A + H_g (I - C^ A)) Q,      d eps_p / d d_eps = (I - C^ A) Q,
+            d eps_p / d ebar_p = H_g (C^ - C^ A C^),         d sigma / d ebar_p = H_g A C^ + H_g d eps_p / d ebar_p - H_g I
+
+        (s_n moves by H_g d ebar_p and the step's problem depends on s_n and d_e^ through d_e^ + C^ s_n).
+        Two limits of this form, measured against central differences at hardening points
+        (``tests/material/test_back_stress.py``):
+
+        * The step stabilisation's floor, a constant of each step computed at s_n, is held fixed in the
+          derivatives in ebar_p: with mu = 0.1 they are off by 2.8e-4 of their size at hardening points and
+          3.5e-4 past the peak (2e-10 and 3e-9 without it).
+        * Induced anisotropy (beta != 0) is refused: its strengths follow the strain, which d_e^ is not, so
+          the kernel's tangent would have to carry the strengths' slope through P = Q^-1 and give the tangent
+          at fixed strengths besides (measured with that mapping built: d sigma / d ebar_p off by 5e-4).
+
+        The continuation past limit points is not used (its bookkeeping of the strain is the law's): a point
+        whose branch ends within the step fails and is cut back like any other.
+        """
+        bs, H = self._shifted, self.back_stress_modulus
+        ebar = np.asarray(state["nonlocal_plastic_strain"], dtype=float) + d_np
+        x_n = H * (np.asarray(state["plastic_strain"], dtype=float) - ebar)
+        s_hat, new_state, A = self._integrate(bs.to_shifted(de), sig - x_n, state, "mandel" if tangent else False,
+                                              None, f, limits=False, shifted=bs)
+        ok = new_state["status"] != STATUS_FAILED
+        new_state["strain"] = np.where(ok[:, None, None], state["strain"] + de, state["strain"])
+        eps_p = new_state["plastic_strain"]
+        x = H * (eps_p - ebar)
+        new_state["nonlocal_plastic_strain"] = ebar
+        new_state["back_stress"] = x
+        new_sig = s_hat + x
+        if not tangent:
+            return new_sig, new_state, None
+        eye, C, Q = np.eye(6), bs.comp, bs.shift_map
+        CA = np.einsum("ij,njk->nik", C, A)
+        dep_de = np.einsum("nij,jk->nik", eye - CA, Q)
+        dep_deb = H * (C - np.einsum("nij,jk->nik", CA, C))
+        dsig_de = np.einsum("nij,jk->nik", A + H * (eye - CA), Q)
+        dsig_deb = H * np.einsum("nij,jk->nik", A, C) + H * dep_deb - H * eye
+        t = _k.tangent_from_mandel
+        return new_sig, new_state, BackStressTangent(t(np.ascontiguousarray(dsig_de)), t(np.ascontiguousarray(dsig_deb)),
+                                                     eps_p.copy(), t(np.ascontiguousarray(dep_de)),
+                                                     t(np.ascontiguousarray(dep_deb)))
+
+    def _integrate(self, de, sig, state, tangent, d_nonlocal, f, max_halvings=None, limits=True, shifted=None):
         """One backward-Euler step of the kernel at every point (validated input; no failure record);
         ``max_halvings`` overrides the option's; ``limits=False``: the one-step problem, without the
-        continuation past limit points (:attr:`_passes_limit_points` decides otherwise)."""
+        continuation past limit points (:attr:`_passes_limit_points` decides otherwise); ``shifted``: the
+        back stress's variables (:meth:`_integrate_back_stress`), whose elasticity the kernel takes."""
+        law, comp = (self._law, self._comp) if shifted is None else (shifted.law, shifted.comp)
         n = de.shape[0]
         M = self.n_planes
         sig6 = _k.to_mandel(sig)
@@ -543,7 +651,7 @@ class CPAModel:
         grad_out = np.empty((n, 14))
         soft = self._softening_scale(state, n)
         try:
-            _k.cpa_batch(self._law, opt, lim, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
+            _k.cpa_batch(law, opt, lim, sig6, de6, eps6, kap_n, soft, c0, m_over, shift_n,
                          sig_out, kap_out, D, loading, grad_out, status, iterations, halvings, reached, opening,
                          mobilised, floor_mu, overstress, limit_points)
         finally:
@@ -554,7 +662,7 @@ class CPAModel:
         new_sig = _k.from_mandel(sig_out)
         # plastic strain increment: the part of d_eps the elastic compliance does not explain (exact at
         # the converged residual; it includes the cut-off's opening)
-        d_eps_p = _k.plastic_increment(de6, sig_out, sig6, self._comp)
+        d_eps_p = _k.plastic_increment(de6, sig_out, sig6, comp)
         failed = status == STATUS_FAILED
         ok = ~failed
         step_ratio = np.where(failed, np.where(reached > 0, 0.9 * reached, 0.25), 1.0)
@@ -638,7 +746,8 @@ class CPAModel:
         return np.where(kappa >= kstar, kappa - kstar, 0.0).sum(axis=1) / self.params.t
 
     # ----------------------------------------------------------------------------- replay
-    def _record_failure(self, de, sig, state, idx, d_nonlocal=None, step_fraction: float = 1.0) -> None:
+    def _record_failure(self, de, sig, state, idx, d_nonlocal=None, step_fraction: float = 1.0,
+                        d_nonlocal_plastic_strain=None) -> None:
         import json
 
         record = {
@@ -651,10 +760,14 @@ class CPAModel:
             "axes": self.axes,
             "options_json": np.array(json.dumps({**self.options.__dict__, "regularise": self.regularise,
                                                  "nonlocal_length": self._nonlocal_length,
-                                                 "over_nonlocal": self.over_nonlocal})),
+                                                 "over_nonlocal": self.over_nonlocal,
+                                                 "back_stress_modulus": self.back_stress_modulus,
+                                                 "back_stress_length": self._back_stress_length})),
         }
         if d_nonlocal is not None:
             record["d_nonlocal"] = np.asarray(d_nonlocal, dtype=float)[idx]
+        if d_nonlocal_plastic_strain is not None:
+            record["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[idx]
         for key, arr in state.items():
             record[f"state__{key}"] = np.asarray(arr)[idx]
         self.last_failure = record
@@ -672,6 +785,55 @@ class CPAModel:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **{k: v for k, v in self.last_failure.items() if k != "path"})
         return path
+
+
+class _ShiftedElasticity:
+    """The law in the back stress's variables (:meth:`CPAModel._integrate_back_stress`): the kernel's constants
+    with the elasticity D^ = D + H_g I, and the map Q = C^ D of the strain increment into them."""
+
+    def __init__(self, law: Law, E: float, nu: float, modulus: float):
+        K, G = E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+        Kh, Gh = K + modulus / 3.0, G + modulus / 2.0
+        stiff, self.comp = mandel_elastic(9.0 * Kh * Gh / (3.0 * Kh + Gh), (3.0 * Kh - 2.0 * Gh) / (2.0 * (3.0 * Kh + Gh)))
+        self.law = law._replace(stiff=stiff, comp=self.comp, bulk=float(law.bulk) * Kh / K)
+        self._q = (K / Kh, G / Gh)
+        vol = np.zeros((6, 6))
+        vol[:3, :3] = 1.0 / 3.0
+        self.shift_map = self._q[0] * vol + self._q[1] * (np.eye(6) - vol)
+
+    def to_shifted(self, d_strain: np.ndarray) -> np.ndarray:
+        """Q d_eps of (N, 3, 3) tensors."""
+        tr = np.trace(d_strain, axis1=1, axis2=2)[:, None, None] / 3.0
+        return self._q[1] * d_strain + (self._q[0] - self._q[1]) * tr * np.eye(3)
+
+
+def _check_back_stress(modulus, length, nonlocal_length, beta) -> tuple[float, float | None]:
+    """(H_g, l_b) of the constructor, validated."""
+    try:
+        modulus = float(modulus)
+    except (TypeError, ValueError):
+        raise ValueError(f"back_stress_modulus = {modulus!r}: allowed a finite number >= 0 (kPa)") from None
+    if not (np.isfinite(modulus) and modulus >= 0.0):
+        raise ValueError(f"back_stress_modulus = {modulus!r}: allowed a finite number >= 0 (kPa)")
+    if modulus == 0.0:
+        if length is not None:
+            raise ValueError(f"back_stress_length = {length!r}: needs back_stress_modulus > 0 (it is 0)")
+        return 0.0, None
+    try:
+        length = float(length)
+    except (TypeError, ValueError):
+        raise ValueError(f"back_stress_length = {length!r}: allowed a finite number > 0 (m) with "
+                         f"back_stress_modulus = {modulus!r}") from None
+    if not (np.isfinite(length) and length > 0.0):
+        raise ValueError(f"back_stress_length = {length!r}: allowed a finite number > 0 (m) with "
+                         f"back_stress_modulus = {modulus!r}")
+    if nonlocal_length is not None:
+        raise ValueError(f"back_stress_modulus = {modulus!r} with nonlocal_length = {nonlocal_length!r}: allowed "
+                         "one of the two regularisations, not both")
+    if beta != 0.0:
+        raise ValueError(f"back_stress_modulus = {modulus!r} with induced anisotropy (beta = {beta!r}): not "
+                         "supported yet; allowed with beta = 0 (CPAModel._integrate_back_stress says why)")
+    return modulus, length
 
 
 def _check_relaxation_time(value, stabilisation) -> float | None:
@@ -725,12 +887,15 @@ def replay(path, **model_options):
     with np.load(path, allow_pickle=False) as f:
         data = {k: f[k] for k in f.files}
     params = parameters_from_dict(json.loads(str(data["params_json"])), source=str(path))
-    known = set(_Options.__dataclass_fields__) | {"regularise", "nonlocal_length", "over_nonlocal"}
+    known = set(_Options.__dataclass_fields__) | {"regularise", "nonlocal_length", "over_nonlocal",
+                                                  "back_stress_modulus", "back_stress_length"}
     options = {k: v for k, v in json.loads(str(data["options_json"])).items() if k in known}
     options.update(model_options)
     model = CPAModel(params, rule=str(data["rule"]), axes=data["axes"], **options)
     state = {k[len("state__"):]: v for k, v in data.items() if k.startswith("state__")}
     extra = {"d_nonlocal": data["d_nonlocal"]} if "d_nonlocal" in data and model._nonlocal_length is not None else {}
+    if "d_nonlocal_plastic_strain" in data and model.back_stress_modulus > 0.0:
+        extra["d_nonlocal_plastic_strain"] = data["d_nonlocal_plastic_strain"]
     if "step_fraction" in data:  # files of older versions: a nominal step
         extra["step_fraction"] = float(data["step_fraction"])
     stress, new_state, tangent = model.update(data["d_strain"], data["stress"], state, **extra)
