@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from material.base import CoupledTangent
+from material.base import BackStressTangent, CoupledTangent
 from material.table import jsonable
 
 __all__ = ["Checkpointer", "latest", "load", "restore", "committed_tangent", "identity_changes", "FORMAT"]
@@ -37,10 +37,12 @@ _J = np.array([p[1] for p in _PAIRS])
 def _pack_tangent(T) -> dict[str, np.ndarray]:
     """The committed tangent in as few numbers as keep it exactly: the 36 independent entries when it has
     both minor symmetries to the bit (the CPA kernel's does), otherwise all 81; a gradient law's
-    :class:`material.base.CoupledTangent` adds its other fields as ``coupled__<field>``."""
-    if isinstance(T, CoupledTangent):
-        out = {f"coupled__{k}": np.asarray(v) for k, v in T._asdict().items() if k != "dstress_dstrain"}
-        return {**out, **_pack_tangent(T.dstress_dstrain)}
+    :class:`material.base.CoupledTangent` adds its other fields as ``coupled__<field>``, a
+    :class:`material.base.BackStressTangent` as ``backstress__<field>``."""
+    for kind, prefix in ((CoupledTangent, "coupled__"), (BackStressTangent, "backstress__")):
+        if isinstance(T, kind):
+            out = {f"{prefix}{k}": np.asarray(v) for k, v in T._asdict().items() if k != "dstress_dstrain"}
+            return {**out, **_pack_tangent(T.dstress_dstrain)}
     T = np.asarray(T)
     if np.array_equal(T, T.swapaxes(1, 2)) and np.array_equal(T, T.swapaxes(3, 4)):
         return {"tangent36": np.ascontiguousarray(T[:, _I[:, None], _J[:, None], _I[None, :], _J[None, :]])}
@@ -50,10 +52,13 @@ def _pack_tangent(T) -> dict[str, np.ndarray]:
 def committed_tangent(arrays: dict):
     """The committed tangent that a checkpoint's arrays (:func:`load`) hold, or None."""
     T = _unpack_stress_strain(arrays)
-    coupled = {k[len("coupled__"):]: arrays[k].copy() for k in arrays if k.startswith("coupled__")}
-    if T is None or not coupled:
+    if T is None:
         return T
-    return CoupledTangent(dstress_dstrain=T, **coupled)
+    for kind, prefix in ((CoupledTangent, "coupled__"), (BackStressTangent, "backstress__")):
+        fields = {k[len(prefix):]: arrays[k].copy() for k in arrays if k.startswith(prefix)}
+        if fields:
+            return kind(dstress_dstrain=T, **fields)
+    return T
 
 
 def _unpack_stress_strain(arrays: dict) -> np.ndarray | None:

@@ -40,9 +40,10 @@ import skfem
 from skfem.helpers import dot, grad
 
 from femgran.assembly import Discretisation
-from material.base import CoupledTangent
+from material.base import BackStressTangent, CoupledTangent
+from material.tensors import from_mandel, to_mandel
 
-__all__ = ["GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "one_dimensional_band"]
+__all__ = ["BackStressDiscretisation", "GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "one_dimensional_band"]
 
 #: The linear Lagrange element of ebar on each mesh type.
 NONLOCAL_ELEMENTS = {"MeshHex1": "ElementHex1", "MeshTet1": "ElementTetP1", "MeshQuad1": "ElementQuad1",
@@ -214,5 +215,138 @@ class GradientDiscretisation(Discretisation):
             cols = np.concatenate([np.tile(self.nonlocal_edofs, (1, nu_e)).ravel(),
                                    np.tile(self.edofs, (1, ne)).ravel(),
                                    np.tile(self.nonlocal_edofs, (1, ne)).ravel()])
+            self._coupling = (rows, cols)
+        return self._coupling
+
+
+#: The Mandel basis (6, 3, 3): a symmetric tensor is sum_c v_c E_c, v its Mandel vector (material.tensors).
+_MANDEL_BASIS = np.stack([from_mandel(row) for row in np.eye(6)])
+
+
+class BackStressDiscretisation(Discretisation):
+    """Displacement (order 1 or 2) and the nonlocal plastic strain tensor ebar_p of a law with a gradient
+    back stress (:class:`material.CPAModel` with a ``back_stress_modulus``): six linear nodal fields, the
+    Mandel components of ebar_p, each solving
+
+        ebar_p - l_b^2 lap(ebar_p) = eps_p      in the body,      grad(ebar_p) . n = 0   on its boundary.
+
+    The unknown vector is [u; ebar_p component 0 (nodal values); ...; component 5]. The rows of component c
+    are s [(M + l_b^2 D) ebar_c - int phi eps_p,c], as for the scalar field of
+    :class:`GradientDiscretisation`, and the Newton matrix is the same block matrix with the material's
+    :class:`material.base.BackStressTangent` contracted with the Mandel basis E_c: d sigma / d ebar_c =
+    (d sigma / d ebar_p) : E_c, d eps_p,c / d eps = E_c : (d eps_p / d eps), and the 6 x 6 coupling
+    E_c : (d eps_p / d ebar_p) : E_d of the components at each point.
+
+    All six components are unknowns in plane strain too: with an anisotropic law the out-of-plane plastic
+    shears need not vanish where the total ones do.
+    """
+
+    n_components = 6
+    nonlocal_name = "nonlocal_plastic_strain"
+
+    def __init__(self, mesh, order: int = 2, volumetric: str = "standard", *, length: float, scale: float):
+        super().__init__(mesh, order, volumetric)
+        for name, v in (("length", length), ("scale", scale)):
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} = {v!r}: must be > 0 (finite)")
+        self.length, self.scale = float(length), float(scale)
+        element = getattr(skfem, NONLOCAL_ELEMENTS[type(mesh).__name__])()
+        self.nonlocal_basis = nb = skfem.Basis(mesh, element, intorder=self.intorder)
+        if not np.array_equal(nb.X, self.basis.X):
+            raise RuntimeError("the ebar_p basis does not share the displacement's quadrature points")
+        k = self.n_components
+        self.nbe = nb.Nbfun
+        self.n_nonlocal_dofs = k * nb.N
+        self.ndofs = self.n_displacement_dofs + k * nb.N
+        self.phi = np.ascontiguousarray(np.transpose(np.stack([np.asarray(nb.basis[a][0]) for a in range(self.nbe)]),
+                                                     (1, 2, 0)))  # (nel, nq, nbe)
+        n0 = self.n_displacement_dofs
+        # (nel, 6, nbe): the DOFs of component c at the element's vertices
+        self.nonlocal_edofs = np.ascontiguousarray(
+            n0 + np.arange(k)[None, :, None] * nb.N + nb.element_dofs.T[:, None, :])
+
+        @skfem.BilinearForm
+        def helmholtz(e, v, w):
+            return e * v + self.length**2 * dot(grad(e), grad(v))
+
+        L = sp.kron(sp.identity(k), helmholtz.assemble(nb)).tocoo()
+        self._helmholtz = sp.csr_matrix((self.scale * L.data, (L.row + n0, L.col + n0)), shape=(self.ndofs,) * 2)
+        self._coupling = None
+
+    # ------------------------------------------------------------------ the nonlocal field
+    def nonlocal_values(self, u: np.ndarray) -> np.ndarray:
+        """ebar_p (or its increment) at the points, (N, 3, 3), from the full unknown vector ``u``."""
+        ue = np.asarray(u)[self.nonlocal_edofs]  # (nel, 6, nbe)
+        mandel = np.einsum("eca,eqa->eqc", ue, self.phi).reshape(-1, self.n_components)
+        return from_mandel(mandel)
+
+    def nonlocal_field(self, u: np.ndarray) -> np.ndarray:
+        """The nodal ebar_p at the mesh vertices, (n_vertices, 9) (the tensor's components, row by row)."""
+        nb = self.nonlocal_basis.N
+        mandel = np.asarray(u)[self.n_displacement_dofs:].reshape(self.n_components, nb).T
+        return from_mandel(mandel[: self.mesh.p.shape[1]]).reshape(-1, 9)
+
+    def point_inputs(self, du: np.ndarray) -> dict:
+        """The material's extra input for the increment ``du``: ``{"d_nonlocal_plastic_strain": (N, 3, 3)}``."""
+        return {"d_nonlocal_plastic_strain": self.nonlocal_values(du)}
+
+    # ------------------------------------------------------------------ residual and Newton matrix
+    def _check(self, tangent):
+        if not isinstance(tangent, BackStressTangent):
+            raise TypeError("a BackStressDiscretisation needs a law with a gradient back stress (update(..., "
+                            "d_nonlocal_plastic_strain=) returning a BackStressTangent); got a tangent of type "
+                            f"{type(tangent).__name__}")
+
+    def _weighted_forces(self, tensors):
+        """:meth:`GradientDiscretisation._weighted_force` of six tensor fields (N, 6, 3, 3): (nel, nq, 6, nbf, dim)."""
+        d = self.dim
+        T = np.asarray(tensors)[:, :, :d, :d].reshape(self.nelems, self.nqp, self.n_components, d, d)
+        f = np.einsum("eqcij,eqaj->eqcai", T, self.dN, optimize=True)
+        if self.g is not None:
+            f = f + self.c * np.trace(T, axis1=3, axis2=4)[:, :, :, None, None] * self.g[:, :, None]
+        return f
+
+    def internal_force(self, stress, tangent=None, u=None) -> np.ndarray:
+        """The coupled residual without the external load: the displacement rows f_int(sigma) and the rows of
+        each component of ebar_p (class docstring) from the full unknown ``u`` and the plastic strain in
+        ``tangent``; without them (the reactions) those rows are zero."""
+        f = super().internal_force(stress)
+        if tangent is None or u is None:
+            return f
+        self._check(tangent)
+        local = to_mandel(np.asarray(tangent.local)).reshape(self.nelems, self.nqp, self.n_components)
+        fe = np.einsum("eqc,eqa,eq->eca", local, self.phi, self.dx, optimize=True)
+        f -= self.scale * np.bincount(self.nonlocal_edofs.ravel(), weights=fe.ravel(), minlength=self.ndofs)
+        return f + self._helmholtz @ np.asarray(u)
+
+    def stiffness(self, tangent) -> sp.csr_matrix:
+        """The Newton matrix of the coupled residual (class docstring) from the material's
+        :class:`material.base.BackStressTangent`."""
+        self._check(tangent)
+        K = super().stiffness(tangent.dstress_dstrain)
+        E = _MANDEL_BASIS
+        dx, phi, nel = self.dx, self.phi, self.nelems
+        s_c = np.einsum("nijkl,ckl->ncij", tangent.dstress_dnonlocal, E, optimize=True)
+        e_c = np.einsum("ckl,nklij->ncij", E, tangent.dlocal_dstrain, optimize=True)
+        c_cd = np.einsum("ckl,nklij,dij->ncd", E, tangent.dlocal_dnonlocal, E, optimize=True)
+        k_ue = np.einsum("eqcai,eqb,eq->eaicb", self._weighted_forces(s_c), phi, dx, optimize=True)
+        k_eu = -self.scale * np.einsum("eqb,eqcai,eq->ecbai", phi, self._weighted_forces(e_c), dx, optimize=True)
+        c = c_cd.reshape(nel, self.nqp, self.n_components, self.n_components)
+        k_ee = -self.scale * np.einsum("eqa,eqcd,eqb,eq->ecadb", phi, c, phi, dx, optimize=True)
+        rows, cols = self._coupling_pattern()
+        data = np.concatenate([k_ue.reshape(nel, -1).ravel(), k_eu.reshape(nel, -1).ravel(),
+                               k_ee.reshape(nel, -1).ravel()])
+        coupling = sp.csr_matrix((data, (rows, cols)), shape=(self.ndofs, self.ndofs))
+        return (K + coupling + self._helmholtz).tocsr()
+
+    def _coupling_pattern(self):
+        """(rows, cols) of the element blocks u-ebar_p, ebar_p-u and ebar_p-ebar_p in :meth:`stiffness`'s order."""
+        if self._coupling is None:
+            ne = self.nonlocal_edofs.reshape(self.nelems, -1)  # (nel, 6 nbe), component-major
+            nu_e, nn_e = self.edofs.shape[1], ne.shape[1]
+            rows = np.concatenate([np.repeat(self.edofs, nn_e, axis=1).ravel(), np.repeat(ne, nu_e, axis=1).ravel(),
+                                   np.repeat(ne, nn_e, axis=1).ravel()])
+            cols = np.concatenate([np.tile(ne, (1, nu_e)).ravel(), np.tile(self.edofs, (1, nn_e)).ravel(),
+                                   np.tile(ne, (1, nn_e)).ravel()])
             self._coupling = (rows, cols)
         return self._coupling

@@ -189,7 +189,7 @@ class SeriesWriter:
         fields = point_fields(solver)
         point_data = {"displacement": disp}
         if hasattr(disc, "nonlocal_field"):
-            point_data["nonlocal"] = disc.nonlocal_field(solver.u)
+            point_data[getattr(disc, "nonlocal_name", "nonlocal")] = disc.nonlocal_field(solver.u)
         cell_data = {}
         w = disc.dx / disc.dx.sum(axis=1, keepdims=True)
         for key, val in fields.items():

@@ -15,7 +15,7 @@ import copy
 
 import numpy as np
 
-from material.base import STATUS_OK, CoupledTangent, as_stress_batch, check_batch
+from material.base import STATUS_OK, BackStressTangent, CoupledTangent, as_stress_batch, check_batch
 
 __all__ = ["Composite"]
 
@@ -50,6 +50,11 @@ class Composite:
             raise ValueError(f"laws: nonlocal lengths {sorted(lengths, key=str)} differ; a Composite of gradient-"
                              "enhanced laws needs one length (and no local law among them)")
         self._nonlocal_length = lengths.pop()
+        back = {getattr(law, "back_stress_length", None) for law in self.laws}
+        if len(back) > 1:
+            raise ValueError(f"laws: back stress lengths {sorted(back, key=str)} differ; a Composite of laws with "
+                             "a gradient back stress needs one length (and no law without it among them)")
+        self._back_stress_length = back.pop()
         taus = {getattr(law, "relaxation_time", None) for law in self.laws if getattr(law, "rate_dependent", False)}
         if len(taus) > 1:
             raise ValueError(f"laws: relaxation times {sorted(taus, key=str)} differ; one step_fraction goes to every "
@@ -67,6 +72,13 @@ class Composite:
         if self._nonlocal_length is None:
             raise AttributeError("nonlocal_length: the laws of this Composite are local")
         return self._nonlocal_length
+
+    @property
+    def back_stress_length(self) -> float:
+        """The laws' common back stress length l_b [m] (``AttributeError`` for laws without the back stress)."""
+        if self._back_stress_length is None:
+            raise AttributeError("back_stress_length: the laws of this Composite have no gradient back stress")
+        return self._back_stress_length
 
     @property
     def E(self) -> float:
@@ -130,10 +142,12 @@ class Composite:
         """The one relaxation time of the :attr:`rate_dependent` laws (:func:`material.base.step_fraction`)."""
         return self._relaxation_time
 
-    def update(self, d_strain, stress, state, d_nonlocal=None, step_fraction: float = 1.0):
-        """Each law on its points; ``d_nonlocal`` (gradient-enhanced laws, :mod:`material.base`) is split
-        the same way and the :class:`material.base.CoupledTangent` is merged field by field;
-        ``step_fraction`` goes to the :attr:`rate_dependent` laws."""
+    def update(self, d_strain, stress, state, d_nonlocal=None, step_fraction: float = 1.0,
+               d_nonlocal_plastic_strain=None):
+        """Each law on its points; ``d_nonlocal`` (gradient-enhanced laws, :mod:`material.base`) and
+        ``d_nonlocal_plastic_strain`` (laws with a gradient back stress) are split the same way and the
+        :class:`material.base.CoupledTangent` or :class:`material.base.BackStressTangent` is merged field by
+        field; ``step_fraction`` goes to the :attr:`rate_dependent` laws."""
         de, s = check_batch(d_strain, stress)
         n = self._n(de.shape[0])
         new_stress = np.empty_like(s)
@@ -143,6 +157,8 @@ class Composite:
             prefix = f"{k}:"
             sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
             extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[idx]}
+            if d_nonlocal_plastic_strain is not None:
+                extra["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[idx]
             if getattr(law, "rate_dependent", False):
                 extra["step_fraction"] = step_fraction
             s_k, st_k, D_k = law.update(de[idx], s[idx], sub, **extra)
@@ -172,14 +188,15 @@ class Composite:
 
 
 def _empty_like_tangent(D, n: int):
-    """An uninitialised tangent of n points of the kind of ``D`` (an array or a CoupledTangent)."""
-    if isinstance(D, CoupledTangent):
-        return CoupledTangent(*(np.empty((n,) + np.shape(f)[1:]) for f in D))
+    """An uninitialised tangent of n points of the kind of ``D`` (an array, a CoupledTangent or a
+    BackStressTangent)."""
+    if isinstance(D, (CoupledTangent, BackStressTangent)):
+        return type(D)(*(np.empty((n,) + np.shape(f)[1:]) for f in D))
     return np.empty((n, 3, 3, 3, 3))
 
 
 def _assign_tangent(tangent, idx, D) -> None:
-    if isinstance(tangent, CoupledTangent):
+    if isinstance(tangent, (CoupledTangent, BackStressTangent)):
         for full, part in zip(tangent, D):
             full[idx] = part
     else:

@@ -369,12 +369,13 @@ class CPAModel:
         }
 
     def _softening_scale(self, state: State, n: int) -> np.ndarray:
-        """Per point slip scale of the post-peak softening, softening_slip t / h (0: none)."""
+        """Per point slip scale of the post-peak softening, softening_slip t / h (0: none); softening_slip itself
+        where a gradient (the implicit gradient or the back stress) regularises instead of the crack band."""
         p = self.params
         if p.softening_slip == 0.0:
             return np.zeros(n)
         h = state.get("element_size")
-        if h is None or not self.regularise or self._nonlocal_length is not None:
+        if h is None or not self.regularise or self._nonlocal_length is not None or self._shifted is not None:
             return np.full(n, p.softening_slip)
         return p.softening_slip * p.t / np.asarray(h, dtype=float)
 
@@ -540,33 +541,36 @@ class CPAModel:
         """One step with the gradient back stress X = H_g (eps_p - ebar_p), ebar_p = the committed value plus
         ``d_np`` (validated input).
 
-        Every plane sees s = sigma - X. Within the step X = H_g (eps_p,n + d_eps_p - ebar_p) with
-        d_eps_p = d_eps - C d_sigma, so s - s_n = D d_eps - (D + H_g I) d_eps_p: the law's own step from
-        s_n = sigma_n - X_n with the stiffer elasticity D^ = D + H_g I (K + H_g / 3, G + H_g / 2) and the
-        strain increment d_e^ = C^ D d_eps. The kernel runs unchanged on those variables and
-        sigma = s + H_g (eps_p - ebar_p). With A = d s / d d_e^ the kernel's tangent and Q = C^ D:
+        Every plane sees s = sigma - X. Within the step X = H_g (eps_p,n + d_eps_p - ebar_p,n - d_ebar_p) with
+        d_eps_p = d_eps - C d_sigma, so s - s_n = D d_eps + H_g d_ebar_p - (D + H_g I) d_eps_p: the law's own
+        step from the committed s_n = sigma_n - X_n with the stiffer elasticity D^ = D + H_g I (K + H_g / 3,
+        G + H_g / 2) and the increment d_e^ = C^ (D d_eps + H_g d_ebar_p). The kernel runs unchanged on those
+        variables and sigma = s + H_g (eps_p - ebar_p). With A = d s / d d_e^ the kernel's tangent and
+        Q = C^ D:
 
             d sigma / d d_eps = (A + H_g (I - C^ A)) Q,      d eps_p / d d_eps = (I - C^ A) Q,
             d eps_p / d ebar_p = H_g (C^ - C^ A C^),         d sigma / d ebar_p = H_g A C^ + H_g d eps_p / d ebar_p - H_g I
 
-        (s_n moves by H_g d ebar_p and the step's problem depends on s_n and d_e^ through d_e^ + C^ s_n).
-        Two limits of this form, measured against central differences at hardening points
-        (``tests/material/test_back_stress.py``):
+        The start s_n holds the committed back stress, so the step stabilisation's floor, computed at s_n, is
+        the same for every d_ebar_p, and with ebar_p = eps_p (X = 0 at the end) the step is the law's to
+        round-off. (A first version started from sigma_n minus the end-of-step X_n with the committed
+        plastic strain: its floor moved with d_ebar_p, the derivatives in ebar_p were off by 3e-4 with
+        mu = 0.1, and a homogeneous specimen left the law by 2e-6 of q.) Induced anisotropy (beta != 0) is
+        refused: its strengths follow the strain, which d_e^ is not, so the kernel's tangent would have to
+        carry the strengths' slope through Q^-1 and give the tangent at fixed strengths besides (measured
+        with that mapping built: d sigma / d ebar_p off by 5e-4).
 
-        * The step stabilisation's floor, a constant of each step computed at s_n, is held fixed in the
-          derivatives in ebar_p: with mu = 0.1 they are off by 2.8e-4 of their size at hardening points and
-          3.5e-4 past the peak (2e-10 and 3e-9 without it).
-        * Induced anisotropy (beta != 0) is refused: its strengths follow the strain, which d_e^ is not, so
-          the kernel's tangent would have to carry the strengths' slope through P = Q^-1 and give the tangent
-          at fixed strengths besides (measured with that mapping built: d sigma / d ebar_p off by 5e-4).
-
-        The continuation past limit points is not used (its bookkeeping of the strain is the law's): a point
+        The step stabilisation keeps the law's floor (its mu scaled by G / G^); its ``"minimal"`` form solves
+        the rate problem of the shifted variables, so the least mu it finds includes the back stress's
+        coupling. The continuation past limit points is not used (its bookkeeping of the strain is the law's): a point
         whose branch ends within the step fails and is cut back like any other.
         """
         bs, H = self._shifted, self.back_stress_modulus
-        ebar = np.asarray(state["nonlocal_plastic_strain"], dtype=float) + d_np
-        x_n = H * (np.asarray(state["plastic_strain"], dtype=float) - ebar)
-        s_hat, new_state, A = self._integrate(bs.to_shifted(de), sig - x_n, state, "mandel" if tangent else False,
+        ebar_n = np.asarray(state["nonlocal_plastic_strain"], dtype=float)
+        ebar = ebar_n + d_np
+        x_n = H * (np.asarray(state["plastic_strain"], dtype=float) - ebar_n)
+        d_shifted = bs.to_shifted(de) + H * _k.from_mandel(np.ascontiguousarray(_k.to_mandel(d_np) @ bs.comp.T))
+        s_hat, new_state, A = self._integrate(d_shifted, sig - x_n, state, "mandel" if tangent else False,
                                               None, f, limits=False, shifted=bs)
         ok = new_state["status"] != STATUS_FAILED
         new_state["strain"] = np.where(ok[:, None, None], state["strain"] + de, state["strain"])
@@ -638,7 +642,10 @@ class CPAModel:
         minimal = o.stabilisation == MINIMAL
         halvings_cap = o.max_halvings if max_halvings is None else int(max_halvings)
         passes = limits and self._passes_limit_points and int(self.MAX_LIMIT_POINTS) > 0
-        opt = Options(o.tol, o.maxit, halvings_cap, bool(tangent), 0.0 if minimal else o.stabilisation, f, minimal,
+        # (the floor is mu times an elastic self-coupling proportional to G: in the back stress's variables mu
+        # scales by G / G^, so that the floor, and with X = 0 the step, are the law's)
+        mu = 0.0 if minimal else o.stabilisation * (1.0 if shifted is None else shifted.floor_scale)
+        opt = Options(o.tol, o.maxit, halvings_cap, bool(tangent), mu, f, minimal,
                       int(self.LIMIT_BISECTIONS) if passes else 0)
         lim = Limits(int(self.MAX_LIMIT_POINTS) if passes else 0, float(self.LIMIT_FD_STEP))
         limit_points = np.empty(n, dtype=np.int32)
@@ -797,6 +804,7 @@ class _ShiftedElasticity:
         stiff, self.comp = mandel_elastic(9.0 * Kh * Gh / (3.0 * Kh + Gh), (3.0 * Kh - 2.0 * Gh) / (2.0 * (3.0 * Kh + Gh)))
         self.law = law._replace(stiff=stiff, comp=self.comp, bulk=float(law.bulk) * Kh / K)
         self._q = (K / Kh, G / Gh)
+        self.floor_scale = G / Gh  # of the step stabilisation's mu (CPAModel._integrate)
         vol = np.zeros((6, 6))
         vol[:3, :3] = 1.0 / 3.0
         self.shift_map = self._q[0] * vol + self._q[1] * (np.eye(6) - vol)

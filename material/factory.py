@@ -17,7 +17,8 @@ The one rule for the deposition angle: a CPA law built here gets the material ax
 them (the deposition axis e2, up to its sign), so the angle recorded next to a result is the angle the
 law used. An object without axes (an isotropic law) accepts any ``alpha_deg``. The CPA options
 ``rule``, ``stabilisation`` / ``relaxation_time`` (the step stabilisation), ``nonlocal_length`` /
-``over_nonlocal`` (the implicit gradient) and ``regularise`` (the crack-band scaling of the softening by the
+``over_nonlocal`` (the implicit gradient), ``back_stress_modulus`` / ``back_stress_length`` (the gradient back
+stress) and ``regularise`` (the crack-band scaling of the softening by the
 element size, :class:`material.cpa.CPAModel`) apply only to a law built here.
 
 Frames: ``plane_strain=False`` has the vertical along z (e2 = (sin a, 0, cos a),
@@ -37,7 +38,7 @@ __all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS"]
 #: Keys of each law in a mapping spec (the ``[material]`` table of a case file).
 LAWS = {
     "cpa": ("preset", "parameters", "rule", "set", "stabilisation", "relaxation_time", "regularise", "nonlocal_length",
-            "over_nonlocal"),
+            "over_nonlocal", "back_stress_modulus", "back_stress_length"),
     "von_mises": ("E_kPa", "nu", "yield_stress_kPa", "hardening_kPa", "length_m", "over_nonlocal"),
     "drucker_prager": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg", "match", "hardening_kPa"),
     "mohr_coulomb": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg"),
@@ -104,7 +105,9 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
         return make_material(with_changes(params, spec.get("set") or {}), alpha_deg=alpha_deg,
                              plane_strain=plane_strain, rule=spec.get("rule"), stabilisation=spec.get("stabilisation"),
                              relaxation_time=spec.get("relaxation_time"), regularise=spec.get("regularise"),
-                             nonlocal_length=spec.get("nonlocal_length"), over_nonlocal=spec.get("over_nonlocal"))
+                             nonlocal_length=spec.get("nonlocal_length"), over_nonlocal=spec.get("over_nonlocal"),
+                             back_stress_modulus=spec.get("back_stress_modulus"),
+                             back_stress_length=spec.get("back_stress_length"))
     cls = {"von_mises": mlib.VonMises, "drucker_prager": mlib.DruckerPrager, "mohr_coulomb": mlib.MohrCoulomb,
            "linear_elastic": mlib.LinearElastic}[law]
     if law == "von_mises" and ("length_m" in spec or "over_nonlocal" in spec):
@@ -118,7 +121,9 @@ def _from_mapping(spec, alpha_deg, plane_strain: bool, base: Path):
 def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bool = False,
                   rule: str | None = None, stabilisation: float | None = None,
                   relaxation_time: float | None = None, regularise: bool | None = None,
-                  nonlocal_length: float | None = None, over_nonlocal: float | None = None, base: Path = Path(".")):
+                  nonlocal_length: float | None = None, over_nonlocal: float | None = None,
+                  back_stress_modulus: float | None = None, back_stress_length: float | None = None,
+                  base: Path = Path(".")):
     """The material object for ``spec`` (module docstring: what may be given, and the rule for ``alpha_deg``).
     ``base``: the folder a parameter file named in a mapping spec is relative to."""
     if isinstance(spec, Mapping):
@@ -129,7 +134,9 @@ def make_material(spec=None, *, alpha_deg: float | None = None, plane_strain: bo
 
         options = {k: v for k, v in (("rule", rule), ("stabilisation", stabilisation),
                                      ("relaxation_time", relaxation_time), ("regularise", regularise),
-                                     ("nonlocal_length", nonlocal_length), ("over_nonlocal", over_nonlocal))
+                                     ("nonlocal_length", nonlocal_length), ("over_nonlocal", over_nonlocal),
+                                     ("back_stress_modulus", back_stress_modulus),
+                                     ("back_stress_length", back_stress_length))
                    if v is not None}
         axes = deposition_axes(0.0 if alpha_deg is None else alpha_deg, plane_strain=plane_strain)
         return CPAModel(params, axes=axes, **options)

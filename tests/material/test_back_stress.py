@@ -63,6 +63,20 @@ def test_the_step_keeps_hooke_and_the_back_stress_is_h_times_the_plastic_strain_
     assert np.abs(d_eps_p).max() > 1e-4  # (the step is plastic)
 
 
+@pytest.mark.parametrize("stabilisation", [0.0, 0.1])
+def test_with_the_field_on_the_plastic_strain_the_step_is_the_law_s(stabilisation):
+    """ebar_p's increment equal to the law's plastic strain increment: X = 0 at the end, and the step gives
+    the law's stress and slips (measured 4e-11 kPa, also with the step stabilisation, whose floor the
+    back stress's variables keep)."""
+    law, bs, (s_law, st_law, _), (s_bs, st_bs, _), de = _hardening(stabilisation)
+    s1, st1, _ = law.update(0.3 * de, s_law, st_law)
+    s2, st2, _ = bs.update(0.3 * de, s_bs, st_bs,
+                           d_nonlocal_plastic_strain=st1["plastic_strain"] - st_law["plastic_strain"])
+    assert np.abs(s2 - s1).max() < 1e-9 * np.abs(s1).max()
+    assert np.abs(st2["kappa"] - st1["kappa"]).max() < 1e-10 * st1["kappa"].max()
+    assert np.abs(st2["back_stress"]).max() < 1e-8
+
+
 def test_the_tangent_at_a_fixed_field_is_the_back_stress_loading_tangent_of_the_localisation_diagnostic():
     """Two independent derivations: the kernel in shifted variables (update) and the rate problem with the
     back stress's coupling (loading_tangent, strengthening="back_stress"), which differs from the law's by
@@ -99,12 +113,10 @@ def _central_differences(bs, sig, st, d_eps, d_bar, which, h=1e-8):
     return max(errors)
 
 
-@pytest.mark.parametrize("stabilisation, softening, tol_field", [(0.0, False, 1e-8), (0.1, False, 1e-3),
-                                                                 (0.0, True, 1e-7), (0.1, True, 1e-3)])
-def test_the_coupled_tangent_against_central_differences(stabilisation, softening, tol_field):
-    """All four derivatives at hardening points, or past the peak (measured: 2e-10 of their size, 3e-9 past
-    the peak; the derivatives in ebar_p with the step stabilisation 2.8e-4 / 3.5e-4, whose floor at s_n is
-    held fixed: see CPAModel._integrate_back_stress)."""
+@pytest.mark.parametrize("stabilisation, softening", [(0.0, False), (0.1, False), (0.0, True), (0.1, True)])
+def test_the_coupled_tangent_against_central_differences(stabilisation, softening):
+    """All four derivatives at hardening points, or past the peak (measured: 3e-10 to 7e-10 of their size,
+    1e-9 to 5e-9 past the peak, with the step stabilisation as without it)."""
     law, bs, _, (sig, st, _), de = _hardening(stabilisation, softening=softening, steps=60 if softening else 6)
     if softening:  # (three of the four points have a plane past its peak)
         assert (st["kappa"] >= law.params.kappa_instability).any(axis=1).sum() == 3
@@ -112,10 +124,7 @@ def test_the_coupled_tangent_against_central_differences(stabilisation, softenin
     d_bar = rng.normal(size=(4, 3, 3)) * 2e-4
     d_bar = 0.5 * (d_bar + d_bar.transpose(0, 2, 1))
     assert _central_differences(bs, sig, st, 0.3 * de, d_bar, 0) < 1e-7
-    err = _central_differences(bs, sig, st, 0.3 * de, d_bar, 1)
-    assert err < tol_field
-    if stabilisation:
-        assert err > 1e-6  # (the held floor is visible: if this fails, the docstring's figure is out of date)
+    assert _central_differences(bs, sig, st, 0.3 * de, d_bar, 1) < 1e-7
 
 
 def test_bad_input_names_the_key_the_value_and_what_is_allowed():
