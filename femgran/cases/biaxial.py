@@ -327,6 +327,12 @@ def _with_weak_zone(mat, weak: float, d, size: float, W: float, y0: float):
 
 
 def _regularisation(mat) -> str:
+    back = getattr(mat, "back_stress_length", None)
+    if back is not None:
+        modulus = getattr(mat, "back_stress_modulus", None)
+        if modulus is None and hasattr(mat, "laws"):
+            modulus = getattr(mat.laws[0], "back_stress_modulus", None)
+        return f"gradient back stress: modulus H = {modulus:g} kPa, length l = {back:g} m"
     length = getattr(mat, "nonlocal_length", None)
     if length is not None:
         return f"implicit gradient: length l = {length:g} m"

@@ -47,6 +47,8 @@ def _material(args) -> dict:
             spec["relaxation_time"] = args.relaxation_time
         if args.nonlocal_length is not None:
             spec["nonlocal_length"] = args.nonlocal_length
+        if args.back_stress is not None:
+            spec["back_stress_modulus"], spec["back_stress_length"] = args.back_stress
         if args.rule is not None:
             spec["rule"] = args.rule
     elif args.law == "von_mises":
@@ -92,6 +94,10 @@ def _material_flags(p):
     g.add_argument("--nonlocal-length", type=float, default=None, metavar="L",
                    help="CPA with post-peak softening: regularise it by the implicit gradient of length L [m] "
                         "instead of the crack band (docs/regularisation.md)")
+    g.add_argument("--back-stress", type=float, nargs=2, default=None, metavar=("H", "L"),
+                   help="CPA: a gradient back stress H (eps_p - ebar_p) on every plane, H [kPa], ebar_p the "
+                        "plastic strain smoothed over the length L [m] (six more nodal fields; "
+                        "docs/regularisation.md section 5)")
     g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
     g.add_argument("--yield-stress", type=float, default=100.0 * np.sqrt(3), help="von Mises yield stress [kPa]")

@@ -88,3 +88,26 @@ def test_bad_input_of_the_discretisation_and_a_composite():
         Composite([law, law.replace(back_stress_modulus=0.0, back_stress_length=None)], np.zeros(4, dtype=int))
     same = Composite([law, law], np.arange(4) % 2)
     assert same.back_stress_length == 0.01 and isinstance(discretisation_for(same, mesh, 1), BackStressDiscretisation)
+
+
+def test_a_back_stress_run_resumes_to_the_bit_and_the_command_line_takes_it(tmp_path, capsys):
+    """Rough platens, weak corner (the back stress is non-zero): stopped after 3 steps and resumed from its
+    checkpoint, the run computes what the uninterrupted one computes, ebar_p included; the command line's
+    --back-stress H L builds the law and records it."""
+    from femgran.cli import main
+
+    case = Biaxial(resolution=4, axial_strain=0.01, steps=6, platens="rough", weak_zone=0.1, imperfection=0.0)
+    spec = {"preset": "ottawa_c109", "stabilisation": 0.1, **BACK}
+    whole = run(case, spec, output=Output(out=tmp_path / "whole", plots=False))
+    run(case, spec, output=Output(out=tmp_path / "part", plots=False, checkpoint_every=3), max_steps=3)
+    resumed = run(case, spec, output=Output(out=tmp_path / "part", plots=False), resume=True)
+    assert whole.completed and resumed.completed
+    n0 = build_problem(case, spec).disc.n_displacement_dofs
+    assert np.abs(whole.u[n0:]).max() > 1e-4  # ebar_p is part of what is compared
+    assert np.array_equal(resumed.u, whole.u)
+    assert main(["biaxial", "--back-stress", "1e4", "0.01", "--axial-strain", "0.01", "--steps", "6",
+                 "--resolution", "4", "--weak-zone", "0.1", "--imperfection", "0", "--platens", "rough",
+                 "--out", str(tmp_path / "cli"), "--no-progress"]) == 0
+    assert "gradient back stress: modulus H = 10000 kPa, length l = 0.01 m" in \
+        (tmp_path / "cli" / "parameters.json").read_text()
+    assert "back_stress_modulus = 10000.0" in (tmp_path / "cli" / "case.toml").read_text()
