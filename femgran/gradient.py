@@ -98,6 +98,36 @@ def one_dimensional_band(length_m: float, over_nonlocal: float = 2.0) -> OneDime
     return OneDimensionalBand(2.0 * theta * lam, 2.0 * lam * float(np.arccos(0.5 * (1.0 + c))), profile)
 
 
+def _add_nonlocal_fields(disc, length: float, scale: float, k: int):
+    """Give ``disc`` (a displacement discretisation) k linear nodal fields on its mesh and quadrature: the
+    validated ``length`` and ``scale``, ``nonlocal_basis``, ``nbe``, ``n_nonlocal_dofs``, ``ndofs``, ``phi``
+    (nel, nq, nbe) and the Helmholtz rows s (M + l^2 D) of each field, numbered after the displacement
+    field by field (``_helmholtz``); returns the scalar basis."""
+    for name, v in (("length", length), ("scale", scale)):
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} = {v!r}: must be > 0 (finite)")
+    disc.length, disc.scale = float(length), float(scale)
+    element = getattr(skfem, NONLOCAL_ELEMENTS[type(disc.mesh).__name__])()
+    disc.nonlocal_basis = nb = skfem.Basis(disc.mesh, element, intorder=disc.intorder)
+    if not np.array_equal(nb.X, disc.basis.X):
+        raise RuntimeError("the nonlocal basis does not share the displacement's quadrature points")
+    disc.nbe = nb.Nbfun
+    disc.n_nonlocal_dofs = k * nb.N
+    disc.ndofs = disc.n_displacement_dofs + k * nb.N
+    disc.phi = np.ascontiguousarray(np.transpose(np.stack([np.asarray(nb.basis[a][0]) for a in range(disc.nbe)]),
+                                                 (1, 2, 0)))  # (nel, nq, nbe)
+
+    @skfem.BilinearForm
+    def helmholtz(e, v, w):
+        return e * v + disc.length**2 * dot(grad(e), grad(v))
+
+    L = sp.kron(sp.identity(k), helmholtz.assemble(nb)).tocoo()
+    n0 = disc.n_displacement_dofs
+    disc._helmholtz = sp.csr_matrix((disc.scale * L.data, (L.row + n0, L.col + n0)), shape=(disc.ndofs,) * 2)
+    disc._coupling = None
+    return nb
+
+
 class GradientDiscretisation(Discretisation):
     """Displacement (order 1 or 2) and a linear nodal nonlocal field ebar on the same mesh and quadrature.
 
@@ -119,30 +149,9 @@ class GradientDiscretisation(Discretisation):
 
     def __init__(self, mesh, order: int = 2, volumetric: str = "standard", *, length: float, scale: float):
         super().__init__(mesh, order, volumetric)
-        for name, v in (("length", length), ("scale", scale)):
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} = {v!r}: must be > 0 (finite)")
-        self.length, self.scale = float(length), float(scale)
-        element = getattr(skfem, NONLOCAL_ELEMENTS[type(mesh).__name__])()
-        self.nonlocal_basis = nb = skfem.Basis(mesh, element, intorder=self.intorder)
-        if not np.array_equal(nb.X, self.basis.X):
-            raise RuntimeError("the ebar basis does not share the displacement's quadrature points")
-        self.nbe = nb.Nbfun
-        self.n_nonlocal_dofs = nb.N
-        self.ndofs = self.n_displacement_dofs + nb.N
-        self.phi = np.ascontiguousarray(np.transpose(np.stack([np.asarray(nb.basis[a][0]) for a in range(self.nbe)]),
-                                                     (1, 2, 0)))  # (nel, nq, nbe)
+        nb = _add_nonlocal_fields(self, length, scale, 1)
         self.nonlocal_edofs = np.ascontiguousarray(nb.element_dofs.T + self.n_displacement_dofs)  # (nel, nbe)
-
-        @skfem.BilinearForm
-        def helmholtz(e, v, w):
-            return e * v + self.length**2 * dot(grad(e), grad(v))
-
-        L = helmholtz.assemble(nb).tocoo()
-        n0 = self.n_displacement_dofs
-        self._helmholtz = sp.csr_matrix((self.scale * L.data, (L.row + n0, L.col + n0)), shape=(self.ndofs,) * 2)
         self._pattern = None
-        self._coupling = None
 
     # ------------------------------------------------------------------ the nonlocal field
     def nonlocal_values(self, u: np.ndarray) -> np.ndarray:
@@ -246,32 +255,10 @@ class BackStressDiscretisation(Discretisation):
 
     def __init__(self, mesh, order: int = 2, volumetric: str = "standard", *, length: float, scale: float):
         super().__init__(mesh, order, volumetric)
-        for name, v in (("length", length), ("scale", scale)):
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} = {v!r}: must be > 0 (finite)")
-        self.length, self.scale = float(length), float(scale)
-        element = getattr(skfem, NONLOCAL_ELEMENTS[type(mesh).__name__])()
-        self.nonlocal_basis = nb = skfem.Basis(mesh, element, intorder=self.intorder)
-        if not np.array_equal(nb.X, self.basis.X):
-            raise RuntimeError("the ebar_p basis does not share the displacement's quadrature points")
-        k = self.n_components
-        self.nbe = nb.Nbfun
-        self.n_nonlocal_dofs = k * nb.N
-        self.ndofs = self.n_displacement_dofs + k * nb.N
-        self.phi = np.ascontiguousarray(np.transpose(np.stack([np.asarray(nb.basis[a][0]) for a in range(self.nbe)]),
-                                                     (1, 2, 0)))  # (nel, nq, nbe)
-        n0 = self.n_displacement_dofs
+        nb = _add_nonlocal_fields(self, length, scale, self.n_components)
         # (nel, 6, nbe): the DOFs of component c at the element's vertices
-        self.nonlocal_edofs = np.ascontiguousarray(
-            n0 + np.arange(k)[None, :, None] * nb.N + nb.element_dofs.T[:, None, :])
-
-        @skfem.BilinearForm
-        def helmholtz(e, v, w):
-            return e * v + self.length**2 * dot(grad(e), grad(v))
-
-        L = sp.kron(sp.identity(k), helmholtz.assemble(nb)).tocoo()
-        self._helmholtz = sp.csr_matrix((self.scale * L.data, (L.row + n0, L.col + n0)), shape=(self.ndofs,) * 2)
-        self._coupling = None
+        self.nonlocal_edofs = np.ascontiguousarray(self.n_displacement_dofs + np.arange(self.n_components)[None, :, None]
+                                                   * nb.N + nb.element_dofs.T[:, None, :])
 
     # ------------------------------------------------------------------ the nonlocal field
     def nonlocal_values(self, u: np.ndarray) -> np.ndarray:

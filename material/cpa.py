@@ -423,12 +423,7 @@ class CPAModel:
         kinds = _k.STRENGTHENINGS
         if strengthening not in kinds:
             raise ValueError(f"strengthening = {strengthening!r}: allowed {', '.join(map(repr, kinds))}")
-        try:
-            modulus = float(modulus)
-        except (TypeError, ValueError):
-            raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0") from None
-        if not (np.isfinite(modulus) and modulus >= 0.0):
-            raise ValueError(f"modulus = {modulus!r}: allowed a finite number >= 0")
+        modulus = _nonnegative("modulus", modulus)
         n, sig, kap = self._committed(stress, state)
         m_over = self.over_nonlocal if self._nonlocal_length is not None else 0.0
         shift = np.zeros_like(kap)
@@ -815,14 +810,20 @@ class _ShiftedElasticity:
         return self._q[1] * d_strain + (self._q[0] - self._q[1]) * tr * np.eye(3)
 
 
+def _nonnegative(name: str, value, unit: str = "") -> float:
+    """``value`` as a finite float >= 0, or a ValueError naming ``name``, the value and what is allowed."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {value!r}: allowed a finite number >= 0{unit}") from None
+    if not (np.isfinite(out) and out >= 0.0):
+        raise ValueError(f"{name} = {value!r}: allowed a finite number >= 0{unit}")
+    return out
+
+
 def _check_back_stress(modulus, length, nonlocal_length, beta) -> tuple[float, float | None]:
     """(H_g, l_b) of the constructor, validated."""
-    try:
-        modulus = float(modulus)
-    except (TypeError, ValueError):
-        raise ValueError(f"back_stress_modulus = {modulus!r}: allowed a finite number >= 0 (kPa)") from None
-    if not (np.isfinite(modulus) and modulus >= 0.0):
-        raise ValueError(f"back_stress_modulus = {modulus!r}: allowed a finite number >= 0 (kPa)")
+    modulus = _nonnegative("back_stress_modulus", modulus, " (kPa)")
     if modulus == 0.0:
         if length is not None:
             raise ValueError(f"back_stress_length = {length!r}: needs back_stress_modulus > 0 (it is 0)")
