@@ -43,7 +43,8 @@ from femgran.assembly import Discretisation
 from material.base import BackStressTangent, CoupledTangent
 from material.tensors import from_mandel, to_mandel
 
-__all__ = ["BackStressDiscretisation", "GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "one_dimensional_band"]
+__all__ = ["BackStressDiscretisation", "GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand",
+           "one_dimensional_band"]
 
 #: The linear Lagrange element of ebar on each mesh type.
 NONLOCAL_ELEMENTS = {"MeshHex1": "ElementHex1", "MeshTet1": "ElementTetP1", "MeshQuad1": "ElementQuad1",
@@ -257,8 +258,9 @@ class BackStressDiscretisation(Discretisation):
         super().__init__(mesh, order, volumetric)
         nb = _add_nonlocal_fields(self, length, scale, self.n_components)
         # (nel, 6, nbe): the DOFs of component c at the element's vertices
-        self.nonlocal_edofs = np.ascontiguousarray(self.n_displacement_dofs + np.arange(self.n_components)[None, :, None]
-                                                   * nb.N + nb.element_dofs.T[:, None, :])
+        component = np.arange(self.n_components)[None, :, None]
+        self.nonlocal_edofs = np.ascontiguousarray(self.n_displacement_dofs + component * nb.N
+                                                   + nb.element_dofs.T[:, None, :])
 
     # ------------------------------------------------------------------ the nonlocal field
     def nonlocal_values(self, u: np.ndarray) -> np.ndarray:

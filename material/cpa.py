@@ -64,7 +64,8 @@ from material import _cpa_kernel as _k
 from material._cpa_local import Law, Limits, Options
 from material._cpa_plane import APEX_ROUNDING
 from material.anisotropy import axes_from_frame, cohesion, default_axes, inherent_tensor
-from material.base import BackStressTangent, CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch, check_batch, check_state
+from material.base import (BackStressTangent, CoupledTangent, STATUS_FAILED, STATUS_OK, State, as_stress_batch,
+                           check_batch, check_state)
 from material.elastic import mandel_elastic
 from material.parameters import CPAParameters, load_preset, parameters_from_dict
 from material.tensors import to_mandel
@@ -154,8 +155,8 @@ class CPAModel:
         ebar_p - l_b^2 lap(ebar_p) = eps_p (``docs/regularisation.md``, section 5). In a homogeneous state
         ebar_p = eps_p and X = 0: the element tests and the calibration are the law's. :meth:`update` takes the
         step's increment of ebar_p (``d_nonlocal_plastic_strain``); 0 (default): no back stress. Not combined
-        with ``nonlocal_length``, nor yet with induced anisotropy (``beta`` != 0). The FE cases do not solve
-        for ebar_p yet.
+        with ``nonlocal_length``, nor yet with induced anisotropy (``beta`` != 0). The FE cases solve for
+        ebar_p (:class:`femgran.gradient.BackStressDiscretisation`).
     """
 
     TANGENTS = ("tensor", "mandel")  # forms of the tangent :meth:`update` returns
@@ -544,7 +545,8 @@ class CPAModel:
         Q = C^ D:
 
             d sigma / d d_eps = (A + H_g (I - C^ A)) Q,      d eps_p / d d_eps = (I - C^ A) Q,
-            d eps_p / d ebar_p = H_g (C^ - C^ A C^),         d sigma / d ebar_p = H_g A C^ + H_g d eps_p / d ebar_p - H_g I
+            d eps_p / d ebar_p = H_g (C^ - C^ A C^),
+            d sigma / d ebar_p = H_g A C^ + H_g d eps_p / d ebar_p - H_g I
 
         The start s_n holds the committed back stress, so the step stabilisation's floor, computed at s_n, is
         the same for every d_ebar_p, and with ebar_p = eps_p (X = 0 at the end) the step is the law's to
@@ -567,13 +569,14 @@ class CPAModel:
         d_shifted = bs.to_shifted(de) + H * _k.from_mandel(np.ascontiguousarray(_k.to_mandel(d_np) @ bs.comp.T))
         s_hat, new_state, A = self._integrate(d_shifted, sig - x_n, state, "mandel" if tangent else False,
                                               None, f, limits=False, shifted=bs)
-        ok = new_state["status"] != STATUS_FAILED
-        new_state["strain"] = np.where(ok[:, None, None], state["strain"] + de, state["strain"])
+        ok = (new_state["status"] != STATUS_FAILED)[:, None, None]
+        new_state["strain"] = np.where(ok, state["strain"] + de, state["strain"])
         eps_p = new_state["plastic_strain"]
         x = H * (eps_p - ebar)
-        new_state["nonlocal_plastic_strain"] = ebar
-        new_state["back_stress"] = x
-        new_sig = s_hat + x
+        # (a failed point keeps its start: its stress, field and back stress as committed)
+        new_state["nonlocal_plastic_strain"] = np.where(ok, ebar, ebar_n)
+        new_state["back_stress"] = np.where(ok, x, x_n)
+        new_sig = np.where(ok, s_hat + x, sig)
         if not tangent:
             return new_sig, new_state, None
         eye, C, Q = np.eye(6), bs.comp, bs.shift_map
@@ -583,9 +586,8 @@ class CPAModel:
         dsig_de = np.einsum("nij,jk->nik", A + H * (eye - CA), Q)
         dsig_deb = H * np.einsum("nij,jk->nik", A, C) + H * dep_deb - H * eye
         t = _k.tangent_from_mandel
-        return new_sig, new_state, BackStressTangent(t(np.ascontiguousarray(dsig_de)), t(np.ascontiguousarray(dsig_deb)),
-                                                     eps_p.copy(), t(np.ascontiguousarray(dep_de)),
-                                                     t(np.ascontiguousarray(dep_deb)))
+        dsig_de, dsig_deb, dep_de, dep_deb = (t(np.ascontiguousarray(a)) for a in (dsig_de, dsig_deb, dep_de, dep_deb))
+        return new_sig, new_state, BackStressTangent(dsig_de, dsig_deb, eps_p.copy(), dep_de, dep_deb)
 
     def _integrate(self, de, sig, state, tangent, d_nonlocal, f, max_halvings=None, limits=True, shifted=None):
         """One backward-Euler step of the kernel at every point (validated input; no failure record);
@@ -796,7 +798,8 @@ class _ShiftedElasticity:
     def __init__(self, law: Law, E: float, nu: float, modulus: float):
         K, G = E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
         Kh, Gh = K + modulus / 3.0, G + modulus / 2.0
-        stiff, self.comp = mandel_elastic(9.0 * Kh * Gh / (3.0 * Kh + Gh), (3.0 * Kh - 2.0 * Gh) / (2.0 * (3.0 * Kh + Gh)))
+        stiff, self.comp = mandel_elastic(9.0 * Kh * Gh / (3.0 * Kh + Gh),
+                                          (3.0 * Kh - 2.0 * Gh) / (2.0 * (3.0 * Kh + Gh)))
         self.law = law._replace(stiff=stiff, comp=self.comp, bulk=float(law.bulk) * Kh / K)
         self._q = (K / Kh, G / Gh)
         self.floor_scale = G / Gh  # of the step stabilisation's mu (CPAModel._integrate)

@@ -138,7 +138,8 @@ def test_bad_input_names_the_key_the_value_and_what_is_allowed():
         CPAModel(dataclasses.replace(load_preset("ottawa_c109"), **SOFT), back_stress_modulus=1e4,
                  back_stress_length=0.01, nonlocal_length=0.006)
     induced = dataclasses.replace(load_preset("ottawa_c109"), beta=0.3)
-    with pytest.raises(ValueError, match=r"induced anisotropy \(beta = 0.3\): not supported yet; allowed with beta = 0"):
+    with pytest.raises(ValueError,
+                       match=r"induced anisotropy \(beta = 0.3\): not supported yet; allowed with beta = 0"):
         CPAModel(induced, back_stress_modulus=1e4, back_stress_length=0.01)
     law = CPAModel()
     sig = np.repeat(-100.0 * np.eye(3)[None], 2, axis=0)
