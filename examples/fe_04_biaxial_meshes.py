@@ -7,7 +7,10 @@ region on every mesh with a multiple of 6 elements across) as the trigger, no ge
 Q1 B-bar elements with 12, 18 and 24 elements across the 50 mm width (h, h/1.5, h/2). Each mesh runs
 twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
 t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
-it were one band thickness wide).
+it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
+and ``back_stress`` (the gradient back stress X = H (eps_p - ebar_p) of ``--back-stress H L``,
+docs/regularisation.md, section 5) regularise with a length instead, and ``--alphas`` runs every mesh and
+variant at several deposition angles (``band_vs_alpha.png``: the band angle against alpha).
 
 Stiffness. The study uses E = 60 MPa (a dense sand; ``--youngs-modulus``), not the thesis's 6 MPa: a
 band that softens over a slip s releases the elastic energy of the whole specimen, and the post-peak
@@ -24,6 +27,7 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
+        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3]
 """
 
 from __future__ import annotations
@@ -38,8 +42,8 @@ from femgran.solver import History
 from material.sweep import Run, sweep
 from material.table import Table
 
-VARIANTS = ("regularised", "unregularised", "gradient")
-STYLES = {"crack band": "-", "unregularised": "--"}  # line style of each variant in the plot (gradient: ":")
+VARIANTS = ("regularised", "unregularised", "gradient", "back_stress")
+STYLES = {"crack band": "-", "unregularised": "--"}  # line style of each variant in the plot (gradients: ":")
 POST_PEAK_STRAINS = (0.035, 0.045, 0.06)
 #: The weak zone: the square of side W/3 centred on the left face at H/12 = W/6, i.e. x < W/6, y < W/3.
 WEAK_ZONE_SIZE, WEAK_ZONE_HEIGHT = 1.0 / 3.0, 1.0 / 12.0  # axial strains at which the post-peak q of the meshes is compared
@@ -53,10 +57,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--resolutions", type=int, nargs="+", default=[12, 18, 24],
                     help="elements across the width (multiples of 6: the weak zone is the same region on each)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=["regularised", "unregularised"],
-                    help="regularised: the crack band; gradient: the implicit gradient of length --length")
+                    help="regularised: the crack band; gradient: the implicit gradient of length --length; "
+                         "back_stress: the gradient back stress of --back-stress H L")
     ap.add_argument("--length", type=float, default=0.006,
                     help="the gradient's length l [m] (variant gradient; it needs h <= l/3: 24 elements or more "
                          "across for l = 6 mm, docs/regularisation.md section 4)")
+    ap.add_argument("--back-stress", type=float, nargs=2, default=[1000.0, 0.006], metavar=("H", "L"),
+                    help="variant back_stress: its modulus H [kPa] and length l_b [m] (docs/regularisation.md, "
+                         "section 5: 1 MPa and 6 mm keep q within 1.2 %% on 12 elements across and more)")
+    ap.add_argument("--alphas", type=float, nargs="+", default=[0.0],
+                    help="deposition angles [deg] from the vertical: every mesh and variant runs at each; with "
+                         "more than one, band_vs_alpha.png draws the band angle against alpha")
     ap.add_argument("--softening-slip", type=float, default=0.03, help="slip scale of the softening [m]")
     ap.add_argument("--youngs-modulus", type=float, default=60000.0, help="E [kPa]")
     ap.add_argument("--platens", choices=("smooth", "rough"), default="rough")
@@ -88,7 +99,12 @@ def main(argv=None) -> dict:
                    title="fe_04 meshes", on_record=_say)
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
-    return {(int(r["values"]["resolution"]), r["values"]["variant"]): r["summary"] for r in result.records}
+    if len({r["alpha_deg"] for r in rows}) > 1:
+        _plot_alpha(rows, out / "band_vs_alpha.png")
+    if args.alphas == [0.0]:
+        return {(int(r["values"]["resolution"]), r["values"]["variant"]): r["summary"] for r in result.records}
+    return {(int(r["values"]["resolution"]), r["values"]["variant"], r["values"]["alpha_deg"]): r["summary"]
+            for r in result.records}
 
 
 def study(args) -> list[Run]:
@@ -100,30 +116,42 @@ def study(args) -> list[Run]:
               "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT * 2.0 / args.height_ratio, "weak_zone_size": WEAK_ZONE_SIZE,
               "platens": args.platens, "element_aspect": args.element_aspect,
               "height_ratio": args.height_ratio}
-    if args.length <= 0:
-        raise ValueError(f"--length = {args.length!r}: must be > 0 (m)")
+    back_stress = args.back_stress
+    for name, value in (("--length", args.length), ("--back-stress H", back_stress[0]),
+                        ("--back-stress L", back_stress[1])):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} = {value!r}: must be > 0 (finite)")
+    laws = {"regularised": {**material, "regularise": True}, "unregularised": {**material, "regularise": False},
+            "gradient": {**material, "nonlocal_length": args.length},
+            "back_stress": {**material, "back_stress_modulus": back_stress[0], "back_stress_length": back_stress[1]}}
     runs = []
-    for n in sorted(args.resolutions, reverse=True):
-        for variant in args.variants:
-            law = {**material, "nonlocal_length": args.length} if variant == "gradient" else \
-                {**material, "regularise": variant == "regularised"}
-            runs.append(Run(_tag(n, variant, args.length, args.element_aspect, args.height_ratio), "femgran.sweep:case_target",
-                            {"case": "biaxial", "fields": {**fields, "resolution": n}, "material": law},
-                            {"resolution": n, "variant": variant}))
+    for alpha in args.alphas:
+        for n in sorted(args.resolutions, reverse=True):
+            for variant in args.variants:
+                tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha)
+                runs.append(Run(tag, "femgran.sweep:case_target",
+                                {"case": "biaxial", "fields": {**fields, "resolution": n, "alpha_deg": alpha},
+                                 "material": laws[variant]},
+                                {"resolution": n, "variant": variant, "alpha_deg": alpha}))
     return runs
 
 
-def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0) -> str:
-    suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm"}
+def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0,
+         back_stress=(1000.0, 0.006), alpha: float = 0.0) -> str:
+    suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm",
+              "back_stress": f"_back_stress_{back_stress[0]:g}kPa_{1e3 * back_stress[1]:g}mm"}
     shape = ("" if aspect == 1.0 else f"_aspect_{aspect:g}") + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W")
-    return f"resolution_{n}" + shape + suffix[variant]
+    return f"resolution_{n}" + shape + suffix[variant] + ("" if alpha == 0.0 else f"_alpha_{alpha:g}")
 
 
 def _variant(folder: Path) -> str:
-    """The variant (and for the gradient its length) a run folder holds, from its name."""
-    name = folder.name
+    """The variant (for the gradients with their length, and the back stress's modulus) a run folder
+    holds, from its name."""
+    name = folder.name.split("_alpha_")[0]
     if "_gradient_" in name:
         return "gradient " + name.split("_gradient_")[1]
+    if "_back_stress_" in name:
+        return "back stress " + " ".join(name.split("_back_stress_")[1].split("_"))
     return "unregularised" if name.endswith("_unregularised") else "crack band"
 
 
@@ -162,7 +190,7 @@ def collect(out: Path) -> list[dict]:
         summary = json.loads((folder / "summary.json").read_text())
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n = int(params["resolution"])
-        rows.append({"resolution": n, "variant": _variant(folder),
+        rows.append({"resolution": n, "variant": _variant(folder), "alpha_deg": float(params.get("alpha_deg", 0.0)),
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
                      **summary,
@@ -171,9 +199,12 @@ def collect(out: Path) -> list[dict]:
     for r in rows:
         ref = r["reference_angles_deg"]
         length = float(r["variant"].split()[1][:-2]) if r["variant"].startswith("gradient") else float("nan")
-        row = {"resolution": r["resolution"], "crack_band": int(r["variant"] == "crack band"),
-               "gradient_length_mm (NaN: none)": length, "element_size_mm": r["element_size_mm"],
-               "peak_q_kPa": r["peak_q_kPa"]}
+        back = r["variant"].split()[2:] if r["variant"].startswith("back stress") else ["nan", "nan"]
+        row = {"resolution": r["resolution"], "alpha_deg": r["alpha_deg"], "crack_band": int(r["variant"] == "crack band"),
+               "gradient_length_mm (NaN: none)": length,
+               "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
+               "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm")),
+               "element_size_mm": r["element_size_mm"], "peak_q_kPa": r["peak_q_kPa"]}
         row.update({f"q_at_{e:g}_kPa": q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
         row.update({f"drop_at_{e:g}_kPa": r["peak_q_kPa"] - q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
         row.update(final_eps_a=r["history"]["eps_a"][-1], peak_phi_deg=r["peak_friction_deg"],
@@ -183,8 +214,8 @@ def collect(out: Path) -> list[dict]:
                    completed=int(r["completed"]))
         table.append(row)
     table.write_csv(out / "meshes.csv")
-    for variant in sorted({r["variant"] for r in rows}):
-        sel = [r for r in rows if r["variant"] == variant]
+    for variant, alpha in sorted({(r["variant"], r["alpha_deg"]) for r in rows}):
+        sel = [r for r in rows if r["variant"] == variant and r["alpha_deg"] == alpha]
         parts = []
         for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
             got = [r for r in sel if np.isfinite(r["post_peak_q"][j])]
@@ -194,7 +225,7 @@ def collect(out: Path) -> list[dict]:
                 parts.append(f"at {e:g}: {np.ptp(q):.1f} kPa (of the drop from each mesh's peak: "
                              f"{np.ptp(drop):.1f} kPa) over meshes {[r['resolution'] for r in got]}")
         if parts:
-            print(f"{variant}: spread of q " + "; ".join(parts))
+            print(f"{variant}" + (f", alpha {alpha:g} deg" if alpha else "") + ": spread of q " + "; ".join(parts))
     return rows
 
 
@@ -205,16 +236,17 @@ def _plot(rows, path):
     import matplotlib.pyplot as plt
 
     fig, (ax, ax_drop) = plt.subplots(1, 2, figsize=(10, 4))
-    keys = sorted({(r["variant"], r["resolution"]) for r in rows})
+    keys = sorted({(r["variant"], r["resolution"], r["alpha_deg"]) for r in rows})
     colours = {k: f"C{i % 10}" for i, k in enumerate(keys)}
-    for r in sorted(rows, key=lambda r: (r["variant"], r["resolution"])):
-        style = dict(color=colours[(r["variant"], r["resolution"])], ls=STYLES.get(r["variant"], ":"),
-                     label=f"h = {r['element_size_mm']:.2f} mm, {r['variant']}")
+    for r in sorted(rows, key=lambda r: (r["variant"], r["resolution"], r["alpha_deg"])):
+        style = dict(color=colours[(r["variant"], r["resolution"], r["alpha_deg"])], ls=STYLES.get(r["variant"], ":"),
+                     label=f"h = {r['element_size_mm']:.2f} mm, {r['variant']}"
+                           + (f", alpha {r['alpha_deg']:g}" if r["alpha_deg"] else ""))
         e, q = r["history"]["eps_a"], r["history"]["q_kPa"]
         ax.plot(e, q, **style)
         ax_drop.plot(e, q - r["peak_q_kPa"], **style)
     ax.set_ylabel("q = s1 - s3 [kPa]")
-    ax.set_title("biaxial, CPA with softening: solid = crack band, dashed = none, dotted = gradient", fontsize=9)
+    ax.set_title("biaxial, CPA with softening: solid = crack band, dashed = none, dotted = gradients", fontsize=9)
     start = 0.8 * min(r["history"]["eps_a"][int(np.nanargmax(r["history"]["q_kPa"]))] for r in rows)
     low = min(np.nanmin(np.where(r["history"]["eps_a"] >= start, r["history"]["q_kPa"] - r["peak_q_kPa"], 0.0))
               for r in rows)
@@ -226,6 +258,39 @@ def _plot(rows, path):
         a.set_xlabel("axial strain (compression +)")
         a.legend(fontsize=7)
         a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _plot_alpha(rows, path):
+    """The band angle against the deposition angle, one line per variant and mesh, with the Coulomb, Roscoe
+    and Arthur angles from each run's own peak (an open marker: the detector found no localised band)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    groups = sorted({(r["variant"], r["resolution"]) for r in rows})
+    for i, (variant, n) in enumerate(groups):
+        sel = sorted((r for r in rows if (r["variant"], r["resolution"]) == (variant, n)), key=lambda r: r["alpha_deg"])
+        if len(sel) < 2:
+            continue
+        a = np.array([r["alpha_deg"] for r in sel])
+        angle = np.array([r["band_angle_deg"] for r in sel], float)
+        band = np.array([bool(r["localised"]) for r in sel])
+        ax.plot(a, angle, "-", color=f"C{i}", lw=0.8)
+        ax.scatter(a[band], angle[band], color=f"C{i}", label=f"{variant}, {n} elements across")
+        ax.scatter(a[~band], angle[~band], facecolors="none", edgecolors=f"C{i}")
+        if i == 0:
+            for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
+                ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
+    ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
+           title="biaxial with softening: the band against the bedding (open: no localised band)")
+    ax.title.set_fontsize(9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -63,3 +63,26 @@ def test_fe_04_runs_in_child_processes(tmp_path, load_example):
     assert len(q_kid) == len(q_here) and abs(q_kid - q_here).max() < 1e-9 * q_here.max()
     # before the peak the regularisation changes nothing
     assert abs(kids["unregularised"]["history"]["q_kPa"] - q_kid).max() < 1e-9 * q_here.max()
+
+
+def test_fe_04_back_stress_at_several_deposition_angles(tmp_path, load_example):
+    """--variants back_stress --alphas: one run per angle and variant, keyed (mesh, variant, alpha); meshes.csv
+    names the angle and the back stress's modulus and length; band_vs_alpha.png is drawn. Before the peak
+    the back stress (X = 0 where the plastic strain is uniform) stays close to the local law with the crack
+    band, and the bedding lowers the strength (alpha = 90: the planes of weakness along the load)."""
+    from material.table import read_table
+
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    sols = fe_04.main(["--resolutions", "4", "--axial-strain", "0.01", "--steps", "4", "--variants", "back_stress",
+                       "regularised", "--back-stress", "2000", "0.005", "--alphas", "0", "90", "--out", str(tmp_path)])
+    assert set(sols) == {(4, v, a) for v in ("back_stress", "regularised") for a in (0.0, 90.0)}
+    table = read_table(tmp_path / "meshes.csv")
+    back = table["back_stress_modulus_kPa (NaN: none)"] == 2000.0
+    assert back.sum() == 2 and set(table["back_stress_length_mm (NaN: none)"][back]) == {5.0}
+    assert sorted(table["alpha_deg"]) == [0.0, 0.0, 90.0, 90.0]
+    assert (tmp_path / "band_vs_alpha.png").is_file()
+    rows = {(r["variant"], r["alpha_deg"]): r for r in fe_04.collect(tmp_path)}
+    for alpha in (0.0, 90.0):  # measured 0.41 % and 0.50 % of q
+        q_back, q_local = (rows[v, alpha]["history"]["q_kPa"] for v in ("back stress 2000kPa 5mm", "crack band"))
+        assert 1e-4 * q_local.max() < abs(q_back - q_local).max() < 0.02 * q_local.max()
+    assert rows["crack band", 90.0]["peak_q_kPa"] < 0.97 * rows["crack band", 0.0]["peak_q_kPa"]  # 189.1 / 201.3
