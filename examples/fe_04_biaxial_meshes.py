@@ -191,6 +191,7 @@ def collect(out: Path) -> list[dict]:
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n = int(params["resolution"])
         rows.append({"resolution": n, "variant": _variant(folder), "alpha_deg": float(params.get("alpha_deg", 0.0)),
+                     "folder": folder,
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
                      **summary,
@@ -265,14 +266,20 @@ def _plot(rows, path):
 
 def _plot_alpha(rows, path):
     """The band angle against the deposition angle, one line per variant and mesh, with the Coulomb, Roscoe
-    and Arthur angles from each run's own peak (an open marker: the detector found no localised band)."""
+    and Arthur angles from each run's own peak (an open marker: the detector found no localised band); and
+    beside it, for the finest mesh of the first variant, the deviatoric strain increment from the peak to the
+    end of each run (the bands of the post-peak path)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4))
     groups = sorted({(r["variant"], r["resolution"]) for r in rows})
+    finest = max((g for g in groups if g[0] == groups[0][0]), key=lambda g: g[1])
+    panels = sorted((r for r in rows if (r["variant"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
+    fig = plt.figure(figsize=(6 + 2.2 * len(panels), 5))
+    grid = fig.add_gridspec(1, 1 + len(panels), width_ratios=[2.6] + [1] * len(panels))
+    ax = fig.add_subplot(grid[0, 0])
     for i, (variant, n) in enumerate(groups):
         sel = sorted((r for r in rows if (r["variant"], r["resolution"]) == (variant, n)), key=lambda r: r["alpha_deg"])
         if len(sel) < 2:
@@ -287,14 +294,46 @@ def _plot_alpha(rows, path):
             for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
                 ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
-           title="biaxial with softening: the band against the bedding (open: no localised band)")
+           title="the band against the bedding\n(whole post-peak increment; open: no localised band)")
     ax.title.set_fontsize(9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+    for k, r in enumerate(panels):
+        axf = fig.add_subplot(grid[0, 1 + k])
+        _post_peak_field(axf, r)
+        axf.set_title(f"alpha = {r['alpha_deg']:g} deg", fontsize=9)
+        axf.set_axis_off()
     fig.tight_layout()
+    if panels:
+        fig.text(0.5 + 0.5 * 2.6 / (2.6 + len(panels)), 0.02, f"deviatoric strain increment from the peak to the end, "
+                 f"{finest[0]}, {finest[1]} elements across (each panel on its own scale)", ha="center", fontsize=8)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
+
+def _post_peak_field(ax, row):
+    """The deviatoric strain increment (element averages of the VTK cell field ``strain``) from the first
+    written step within 1 % of the peak q to the last one, drawn on the mesh of ``row``'s run."""
+    import meshio
+    from matplotlib.collections import PolyCollection
+
+    from femgran.output import read_pvd
+
+    h = row["history"]
+    t, q = np.asarray(h["load_factor"]), np.asarray(h["q_kPa"])
+    written = [(step_t, vtu) for step_t, vtu in read_pvd(row["folder"] / "biaxial.pvd")]
+    q_written = np.array([np.interp(step_t, t, q) for step_t, _ in written])
+    first = int(np.flatnonzero(q_written >= 0.99 * np.nanmax(q))[0])
+    start, end = (meshio.read(written[i][1]) for i in (first, -1))
+    d = (np.asarray(end.cell_data["strain"][0], float) - np.asarray(start.cell_data["strain"][0], float)).reshape(-1, 3, 3)
+    dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+    xy = end.points[:, :2]
+    polys = [xy[cell] for block in end.cells for cell in block.data]
+    pc = PolyCollection(polys, array=np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev)), cmap="magma",
+                        edgecolors="face", linewidths=0.1)
+    ax.add_collection(pc)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
 
 if __name__ == "__main__":
     main()
