@@ -274,6 +274,8 @@ def _plot_alpha(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from material.plotting import save_figure
+
     groups = sorted({(r["variant"], r["resolution"]) for r in rows})
     finest = max((g for g in groups if g[0] == groups[0][0]), key=lambda g: g[1])
     panels = sorted((r for r in rows if (r["variant"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
@@ -307,8 +309,7 @@ def _plot_alpha(rows, path):
     if panels:
         fig.text(0.5 + 0.5 * 2.6 / (2.6 + len(panels)), 0.02, f"deviatoric strain increment from the peak to the end, "
                  f"{finest[0]}, {finest[1]} elements across (each panel on its own scale)", ha="center", fontsize=8)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)  # and the angles it draws as a CSV of the same stem
 
 
 def _post_peak_field(ax, row):
