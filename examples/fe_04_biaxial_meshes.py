@@ -95,7 +95,11 @@ def main(argv=None) -> dict:
     if args.jobs < 1:
         ap.error(f"--jobs must be at least 1, got {args.jobs}")
     out = Path(args.out)
-    result = sweep(study(args), out, workers=args.jobs, scheduler=args.scheduler, progress=False,
+    try:
+        runs = study(args)
+    except ValueError as err:  # a length or modulus out of range: the usage line and the message, exit code 2
+        ap.error(str(err))
+    result = sweep(runs, out, workers=args.jobs, scheduler=args.scheduler, progress=False,
                    title="fe_04 meshes", on_record=_say)
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")

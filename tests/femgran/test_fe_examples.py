@@ -86,3 +86,12 @@ def test_fe_04_back_stress_at_several_deposition_angles(tmp_path, load_example):
         q_back, q_local = (rows[v, alpha]["history"]["q_kPa"] for v in ("back stress 2000kPa 5mm", "crack band"))
         assert 1e-4 * q_local.max() < abs(q_back - q_local).max() < 0.02 * q_local.max()
     assert rows["crack band", 90.0]["peak_q_kPa"] < 0.97 * rows["crack band", 0.0]["peak_q_kPa"]  # 189.1 / 201.3
+
+
+def test_fe_04_refuses_a_back_stress_out_of_range(tmp_path, load_example, capsys):
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    with pytest.raises(SystemExit) as stop:
+        fe_04.main(["--variants", "back_stress", "--back-stress", "0", "0.006", "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "--back-stress H = 0.0: must be > 0 (finite)" in capsys.readouterr().err
+    assert not (tmp_path / "sweep.json").exists()
