@@ -318,27 +318,21 @@ def _plot_alpha(rows, path):
 
 def _post_peak_field(ax, row):
     """The deviatoric strain increment (element averages of the VTK cell field ``strain``) from the first
-    written step within 1 % of the peak q to the last one, drawn on the mesh of ``row``'s run."""
-    import meshio
+    written step within 1 % of the peak q to the last one (where :func:`femgran.band.band_history` starts and
+    ends), drawn on the mesh of ``row``'s run."""
     from matplotlib.collections import PolyCollection
 
-    from femgran.output import read_pvd
+    from femgran.band import deviatoric_intensity, read_cells, written_steps
 
-    h = row["history"]
-    t, q = np.asarray(h["load_factor"]), np.asarray(h["q_kPa"])
-    written = [(step_t, vtu) for step_t, vtu in read_pvd(row["folder"] / "biaxial.pvd")]
-    q_written = np.array([np.interp(step_t, t, q) for step_t, _ in written])
-    first = int(np.flatnonzero(q_written >= 0.99 * np.nanmax(q))[0])
-    start, end = (meshio.read(written[i][1]) for i in (first, -1))
-    d = (np.asarray(end.cell_data["strain"][0], float) - np.asarray(start.cell_data["strain"][0], float)).reshape(-1, 3, 3)
-    dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
-    xy = end.points[:, :2]
-    polys = [xy[cell] for block in end.cells for cell in block.data]
-    pc = PolyCollection(polys, array=np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev)), cmap="magma",
-                        edgecolors="face", linewidths=0.1)
+    _, _, paths, start = written_steps(row["folder"])
+    _, e0 = read_cells(paths[start])
+    corners, e1 = read_cells(paths[-1])
+    pc = PolyCollection(corners, array=deviatoric_intensity(e1 - e0), cmap="magma", edgecolors="face",
+                        linewidths=0.1)
     ax.add_collection(pc)
     ax.set_aspect("equal")
     ax.autoscale_view()
+
 
 if __name__ == "__main__":
     main()

@@ -55,10 +55,12 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Band", "measure_band", "measure_arms", "band_history", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
+__all__ = ["Band", "measure_band", "measure_arms", "band_history", "written_steps", "read_cells",
+           "deviatoric_intensity", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
 
 #: The families of band orientations :func:`measure_band` searches: both, or the band's direction rising
 #: (0 to 90 deg from the x axis) or falling (90 to 180 deg).
@@ -340,16 +342,53 @@ and a window longer than the whole post-peak path is that path). In each, the in
     ``contrast``, ``localised`` (1 / 0) and ``rising`` (1 / 0). ``femgran band RUN_FOLDER`` writes it as
     ``band_history.csv``.
     """
-    from pathlib import Path
-
-    import meshio
-
-    from femgran.output import read_pvd
-    from material.table import Table, read_table
+    from material.table import Table
 
     w = float(window)
     if not (np.isfinite(w) and w > 0.0):
         raise ValueError(f"window = {window!r}: must be an axial strain > 0 (e.g. 0.005)")
+    folder = Path(run_folder)
+    w_eps, w_q, paths, start = written_steps(folder, name)
+    cache = {}
+
+    def cells(i):
+        if i not in cache:
+            corners, strain = read_cells(paths[i])
+            cache.clear()  # windows are consecutive: keep the last step only
+            cache[i] = (corners.mean(axis=1), strain, float(np.ptp(corners, axis=1).max()))
+        return cache[i]
+
+    table = Table(metadata={"run_folder": folder.name, "window": w, "intensity":
+                            "deviatoric strain increment over the window, VTK element averages"})
+    i0 = start
+    while True:
+        target = w_eps[i0] + w
+        if target > w_eps[-1] + 0.5 * w and len(table):  # less than half a window left
+            break
+        i1 = int(np.argmin(np.abs(w_eps - min(target, w_eps[-1]))))
+        if i1 <= i0:
+            break
+        x, e0, _ = cells(i0)
+        _, e1, size = cells(i1)
+        band, other = measure_arms(x, deviatoric_intensity(e1 - e0), element_size=size)
+        row = {"eps_from": w_eps[i0], "eps_to": w_eps[i1], "q_from_kPa": w_q[i0], "q_to_kPa": w_q[i1]}
+        for prefix, b in (("", band), ("conjugate_", other)):
+            row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
+                        f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
+                        f"{prefix}rising": float(b.rising)})
+        table.append(row)
+        i0 = i1
+    return table
+
+
+def written_steps(run_folder, name: str = "biaxial"):
+    """The steps of a run folder's VTK series ``NAME.pvd`` matched to its ``history.csv``: (axial strain (K,),
+    q [kPa] (K,), the VTU paths (K,), the index of the first written step within 1 % of the peak deviator
+    (where :func:`band_history` and the summary's band start)). A missing file, a history without
+    ``load_factor`` / ``eps_a`` / ``q_kPa`` or fewer than two written steps raise an error naming the folder."""
+    from femgran.output import read_pvd
+    from material.table import read_table
+
     folder = Path(run_folder)
     pvd, hist_path = folder / f"{name}.pvd", folder / "history.csv"
     for path in (pvd, hist_path):
@@ -372,38 +411,21 @@ and a window longer than the whole post-peak path is that path). In each, the in
     w_rows = np.array([r for r, _ in written])
     w_eps, w_q = eps[w_rows], q[w_rows]
     start = int(np.flatnonzero(w_q >= 0.99 * np.nanmax(q))[0])
-    cache = {}
+    return w_eps, w_q, [path for _, path in written], start
 
-    def cells(i):
-        if i not in cache:
-            m = meshio.read(written[i][1])
-            corners = m.points[m.cells[0].data][:, :, :2]
-            strain = np.asarray(m.cell_data["strain"][0], dtype=float).reshape(-1, 3, 3)
-            size = float(np.ptp(corners, axis=1).max())
-            cache.clear()  # windows are consecutive: keep the last step only
-            cache[i] = (corners.mean(axis=1), strain, size)
-        return cache[i]
 
-    table = Table(metadata={"run_folder": folder.name, "window": w, "intensity":
-                            "deviatoric strain increment over the window, VTK element averages"})
-    i0 = start
-    while True:
-        target = w_eps[i0] + w
-        if target > w_eps[-1] + 0.5 * w and len(table):  # less than half a window left
-            break
-        i1 = int(np.argmin(np.abs(w_eps - min(target, w_eps[-1]))))
-        if i1 <= i0:
-            break
-        x, e0, _ = cells(i0)
-        _, e1, size = cells(i1)
-        d = e1 - e0
-        dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
-        band, other = measure_arms(x, np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev)), element_size=size)
-        row = {"eps_from": w_eps[i0], "eps_to": w_eps[i1], "q_from_kPa": w_q[i0], "q_to_kPa": w_q[i1]}
-        for prefix, b in (("", band), ("conjugate_", other)):
-            row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
-                        f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
-                        f"{prefix}rising": float(b.rising)})
-        table.append(row)
-        i0 = i1
-    return table
+def read_cells(vtu_path):
+    """(the corners' in-plane coordinates (n_cells, n_corners, 2), the cell strain (n_cells, 3, 3)) of one
+    VTU file of a plane run (its cell field ``strain``, element averages)."""
+    import meshio
+
+    m = meshio.read(vtu_path)
+    corners = m.points[m.cells[0].data][:, :, :2]
+    return corners, np.asarray(m.cell_data["strain"][0], dtype=float).reshape(-1, 3, 3)
+
+
+def deviatoric_intensity(d_strain) -> np.ndarray:
+    """sqrt(2 e : e) of the deviatoric part e of strain increments (N, 3, 3): the band's intensity."""
+    d = np.asarray(d_strain, dtype=float)
+    dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+    return np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))

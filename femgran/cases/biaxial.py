@@ -50,7 +50,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.band import Band, measure_arms, measure_band
+from femgran.band import Band, deviatoric_intensity, measure_arms, measure_band
 from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet, PathControl
@@ -296,8 +296,7 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
     de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
     psi = float(np.degrees(np.arcsin(np.clip(-(de1 + de3) / (de1 - de3), -1, 1)))) if de1 != de3 else float("nan")
     dstrain = np.asarray(sol.state["strain"]) - _PeakStrains.strain_at(data, k)
-    dev = dstrain - np.trace(dstrain, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
-    gamma = np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
+    gamma = deviatoric_intensity(dstrain)
     h_el = float(d.element_size().max())
     exclude = (0.0, 0.5 * H, 0.15 * W + h_el) if imp > 0 else None  # the bump's own crush
     band, conjugate = measure_arms(xq, gamma, element_size=h_el, exclude=exclude)
