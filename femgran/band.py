@@ -34,13 +34,26 @@ non-negative intensity at each (e.g. the deviatoric strain increment after the p
    the two ends of the window, each bounded below by 0, so it is nowhere negative there, as the intensity
    is not (unbounded, it tilted from -0.07 to 0.4 across the lopsided profile of a band beside the crush of
    its weak zone).
-3. **A band or none** -- ``localised`` when the fitted peak rises at least :data:`CONTRAST` times the
-   background under its centre line above it and is narrower than :data:`MAX_WIDTH_FRACTION` of the specimen across the band.
+3. **A band or none** -- ``localised`` when (a) the fitted peak rises at least :data:`CONTRAST` times the
+   background under its centre line above it, (b) its full width at half maximum is at most
+   :data:`MAX_WIDTH_FRACTION` of the specimen's **section** across the band (:func:`_section`: the extent
+   of the specimen along the band's normal through its centre; a wider peak is a deforming zone, not a
+   band: :func:`too_wide`, :attr:`Band.verdict`), and (c) the largest line integral does not lie on an end
+   of the orientations searched (there it grows toward a face of the specimen; the centre-line fit is kept
+   within them too).
    Measured on the plane-strain biaxial runs (CPA with softening, rough platens, weak corner, crack band;
    ``tests/femgran/test_band.py``; 60 steps to 5 %): on meshes of 4, 6, 8 and 12 elements across,
-   contrasts of 2.4, 2.9, 2.9 and 2.2 and widths of 0.17-0.35 of the extent across the band; homogeneous
-   runs with smooth platens (no imperfection, with and without softening): 0.0-0.10. The criterion sits
-   between them, a factor of 2.2 and 10 from each. A diffuse field gets no thickness (NaN). An X of two conjugate bands is a band: the profile across one of them
+   contrasts of 2.4, 2.9, 2.9 and 2.2; homogeneous runs with smooth platens (no imperfection, with and
+   without softening): 0.0-0.10. The criterion sits between them, a factor of 2.2 and 10 from each.
+   Widths in windows of 0.5 % axial strain after the peak (``femgran band``, 320 steps to 8 %, specimens
+   3 W tall; the shear-band study of ``docs/regularisation.md``): the crack band on 18 elements 0.16-0.28
+   of the section; the gradient back stress at alpha = 30 and 60 deg, thin rising bands, 0.07-0.26; at
+   alpha = 0, 0.39-0.47 while the band forms, then 0.5-0.95 as it widens into a zone; at alpha = 90 deg a
+   zone of 0.71-0.85 from the peak on, between the platens' rigid cones. Before (b) compared the width with
+   the specimen's whole extent across the band, about twice the section for a specimen 3 W tall, and
+   called that zone a band; before (c) the other arm's search at alpha = 90 deg, turned to 89.6 deg by the
+   centre-line fit, took a column of elements along the free side (0.7 mm wide, contrast 1e12) for a band.
+   A diffuse field or a zone gets no thickness (NaN); :attr:`Band.peak_width_m` keeps the fitted width. An X of two conjugate bands is a band: the profile across one of them
    has its peak, the other crosses it as a broad bump that the fit takes as background.
 4. **Both arms** -- :func:`measure_arms` measures the band of each family of orientations, rising (the
    band's direction between 0 and 90 deg from the x axis) and falling (90 to 180 deg), the stronger first:
@@ -60,7 +73,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["Band", "measure_band", "measure_arms", "band_history", "written_steps", "read_cells",
-           "deviatoric_intensity", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
+           "deviatoric_intensity", "too_wide", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
 
 #: The families of band orientations :func:`measure_band` searches: both, or the band's direction rising
 #: (0 to 90 deg from the x axis) or falling (90 to 180 deg).
@@ -72,7 +85,8 @@ CONTRAST = 1.0
 #: turns it by at most this much [deg] (section 1 of the module docstring). Measured turns: up to 9.1 deg
 #: on the arms of the X of the CPA gradient runs (36 and 48 elements), 0.1-2 deg on clean bands.
 REFINE_DEG = 15.0
-#: ... and be narrower (full width at half maximum) than this fraction of the specimen across the band.
+#: ... and be no wider (full width at half maximum) than this fraction of the specimen's section across the
+#: band (module docstring, section 3; measured widths: 0.07-0.47 for bands, 0.5-0.95 for the zones).
 MAX_WIDTH_FRACTION = 0.5
 
 
@@ -88,8 +102,11 @@ class Band:
     the band, for plots; ``angle_method``: ``"centre line"`` when the angle is that of the fitted centre
     line (module docstring, section 1), else it says why not: ``"line integral (...)"`` when the fit was
     not taken -- a zone too broad for three full slices, or a fit turning more than :data:`REFINE_DEG`,
-    which follows another feature -- and the angle is the 0.5 deg search's, with its pull toward long
-    strips; ``"none"`` for :meth:`none`."""
+    which follows another feature, or one leaving the orientations searched; or the largest line integral
+    on an end of those orientations -- and the angle is the 0.5 deg search's, with its pull toward long
+    strips; ``"none"`` for :meth:`none`. ``section_m``: the specimen's section across the band through its
+    centre; ``peak_width_m``: the fitted peak's full width at half maximum, kept when it is no band (a zone
+    wider than :data:`MAX_WIDTH_FRACTION` of the section, or a diffuse field)."""
 
     angle_deg: float
     direction: tuple[float, float]
@@ -99,19 +116,38 @@ class Band:
     localised: bool
     profile: tuple[np.ndarray, np.ndarray, np.ndarray]
     angle_method: str = "centre line"
+    section_m: float = float("nan")
+    peak_width_m: float = float("nan")
 
     @staticmethod
     def none() -> "Band":
         nan = float("nan")
         empty = np.zeros(0)
-        return Band(nan, (nan, nan), (nan, nan), nan, nan, False, (empty, empty, empty), "none")
+        return Band(nan, (nan, nan), (nan, nan), nan, nan, False, (empty, empty, empty), "none", nan, nan)
 
     def summary(self, prefix: str = "") -> dict:
         """The scalars for a run's summary (their names with ``prefix``, e.g. ``"conjugate_"``)."""
         return {f"{prefix}band_angle_deg": self.angle_deg, f"{prefix}band_thickness_m": self.thickness_m,
                 f"{prefix}band_contrast": self.contrast, f"{prefix}localised": bool(self.localised),
                 f"{prefix}band_centre_m": [float(c) for c in self.centre],
-                f"{prefix}band_angle_method": self.angle_method}
+                f"{prefix}band_angle_method": self.angle_method,
+                f"{prefix}band_peak_width_m": self.peak_width_m, f"{prefix}band_section_m": self.section_m}
+
+    @property
+    def verdict(self) -> str:
+        """Why this is a band or not, in a few words: ``"band"``, ``"none"`` (no intensity), ``"toward a
+        face"`` (the largest line integral on an end of the orientations searched), ``"diffuse"`` (contrast
+        below :data:`CONTRAST`) or ``"zone"`` (a peak wider than :data:`MAX_WIDTH_FRACTION` of the
+        specimen's section across it: a deforming zone, not a band)."""
+        if self.localised:
+            return "band"
+        if self.angle_method == "none":
+            return "none"
+        if self.angle_method.startswith("line integral (largest on an end"):
+            return "toward a face"
+        if not self.contrast >= CONTRAST:
+            return "diffuse"
+        return "zone" if too_wide(self.peak_width_m, self.section_m) else "diffuse"
 
     @property
     def from_line_integral(self) -> bool:
@@ -231,6 +267,24 @@ def _peak_window(crest, centres, means, element_size) -> tuple[int, int, int]:
     return int(inside[0]), k, int(inside[-1])
 
 
+def too_wide(peak_width: float, section: float) -> bool:
+    """Whether a peak of full width at half maximum ``peak_width`` is too wide to be a band in a section of
+    ``section`` across it (:data:`MAX_WIDTH_FRACTION`; module docstring, section 3)."""
+    return bool(peak_width > MAX_WIDTH_FRACTION * section)
+
+
+def _section(x, centre, t: float, element_size: float) -> float:
+    """The specimen's section across the band: the extent, along the band's normal, of the points within
+    half an element of the normal through the band's ``centre`` (``t``: the band's orientation), plus one
+    element, since the points sit inside the boundary (element centres half an element, the 2 x 2 Gauss
+    points of a quadrilateral 0.21 of one)."""
+    along, normal = np.array([np.cos(t), np.sin(t)]), np.array([-np.sin(t), np.cos(t)])
+    near = np.abs((x - centre) @ along) <= 0.5 * element_size
+    if near.sum() < 2:
+        return float(np.ptp(x @ normal)) + element_size
+    return float(np.ptp(x[near] @ normal)) + element_size
+
+
 def _peak_on_background(d_lo: float, d_hi: float):
     """A Gaussian peak on a linear background (the diffuse deformation of the rest of the specimen) over
     the window [d_lo, d_hi], the background given by its values at the window's ends: bounded below by
@@ -290,9 +344,19 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
 
     wanted = {"both": np.ones_like(deg, dtype=bool), "rising": deg <= 90.0, "falling": deg >= 90.0}[family]
     coarse = np.radians(deg[(fold >= search[0]) & (fold <= search[1]) & wanted])
-    best_t = max(coarse, key=score)
+    scores = np.array([score(t) for t in coarse])
+    best = int(np.argmax(scores))
+    best_t = line_t = coarse[best]
+    # the largest line integral on an end of the range searched (the family's ends, not where "both" wraps
+    # round through 90 deg): it grows toward a face of the specimen, along which no band is measured
+    ends = np.flatnonzero(np.abs(np.diff(coarse)) > np.radians(0.75))
+    at_end = best in (0, len(coarse) - 1) or best in ends or best in ends + 1
     best_t, method = _centre_line(x, w, best_t, c, element_size, REFINE_DEG)
     best_t = float(best_t % np.pi)
+    folded = min(np.degrees(best_t), 180.0 - np.degrees(best_t))
+    if not search[0] <= folded <= search[1]:  # the fit left the orientations searched: a face, not a band
+        best_t, method = float(line_t), (f"line integral (the centre line turned to {folded:.1f} deg, outside "
+                                         f"the search's {search[0]:g}-{search[1]:g} deg)")
     normal = np.array([-np.sin(best_t), np.cos(best_t)])
     d = (x - c) @ normal
     centres, means = _strip_means(d, w, 0.5 * element_size)
@@ -316,7 +380,12 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
     fwhm = 2.0 * np.sqrt(2.0 * np.log(2.0)) * s
     bg_at_peak = float(model(off, b_lo, b_hi, 0.0, off, s))  # the background under the band's centre line
     contrast = amp / max(bg_at_peak, 1e-12 * max(amp, 1e-300))
-    localised = bool(contrast >= CONTRAST and fwhm <= MAX_WIDTH_FRACTION * across)
+    section = _section(x, c + off * normal, best_t, element_size)
+    localised = bool(contrast >= CONTRAST and not too_wide(fwhm, section) and not at_end)
+    if at_end:
+        method = (f"line integral (largest on an end of the orientations searched, {search[0]:g}-{search[1]:g} deg "
+                  "from the x axis: it grows toward a face)")
+    peak_width = float(fwhm)
     if not localised:
         fwhm = float("nan")
     angle = float(np.degrees(best_t))
@@ -324,7 +393,7 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
     return Band(angle, (float(np.cos(best_t)), float(np.sin(best_t))), tuple(float(v) for v in c + off * normal),
                 float(fwhm), float(contrast), localised,
                 (centres, means, np.where((centres >= d_lo) & (centres <= d_hi), model(centres, b_lo, b_hi, amp, off, s),
-                                          np.nan)), method)
+                                          np.nan)), method, section, peak_width)
 
 
 def band_history(run_folder, window: float = 0.005, *, name: str = "biaxial"):
@@ -339,7 +408,7 @@ and a window longer than the whole post-peak path is that path). In each, the in
 
     Returns a :class:`material.table.Table`, one row per window: ``eps_from``, ``eps_to``, ``q_from_kPa``,
     ``q_to_kPa``, and for the stronger arm and the other one (``conjugate_``) ``angle_deg``, ``thickness_m``,
-    ``contrast``, ``localised`` (1 / 0) and ``rising`` (1 / 0). ``femgran band RUN_FOLDER`` writes it as
+    ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`). ``femgran band RUN_FOLDER`` writes it as
     ``band_history.csv``.
     """
     from material.table import Table
@@ -375,7 +444,8 @@ and a window longer than the whole post-peak path is that path). In each, the in
         for prefix, b in (("", band), ("conjugate_", other)):
             row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
                         f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
-                        f"{prefix}rising": float(b.rising)})
+                        f"{prefix}rising": float(b.rising), f"{prefix}peak_width_m": b.peak_width_m,
+                        f"{prefix}section_m": b.section_m})
         table.append(row)
         i0 = i1
     return table

@@ -96,6 +96,33 @@ def test_a_diffuse_field_is_no_band(field):
     assert not band.localised and band.contrast < 0.5 and np.isnan(band.thickness_m)
 
 
+def test_a_zone_wider_than_half_the_section_is_no_band_but_keeps_its_width():
+    """A peak of 35 or 45 mm at 60 deg in a specimen 50 mm wide (section 57.7 mm across the band; the
+    points sit inside by half an element) is a deforming zone, not a band; 25 mm is a band. The old criterion,
+    half the specimen's whole extent across the band (93 mm), called all three bands."""
+    narrow = measure_band(POINTS, _band(60.0, 0.025), element_size=h)
+    assert narrow.localised and narrow.verdict == "band"
+    assert narrow.section_m == pytest.approx(W / np.sin(np.radians(60.0)), rel=0.03)  # measured 58.5 mm
+    for fwhm in (0.035, 0.045):
+        zone = measure_band(POINTS, _band(60.0, fwhm), element_size=h)
+        assert not zone.localised and zone.verdict == "zone" and np.isnan(zone.thickness_m)
+        assert zone.peak_width_m == pytest.approx(fwhm, rel=0.1) and zone.contrast > 100.0
+        assert zone.summary()["band_peak_width_m"] == zone.peak_width_m
+
+
+def test_deformation_growing_toward_a_free_side_is_no_band():
+    """Intensity decaying from the specimen's side over one element (the free side of a specimen whose
+    middle deforms as a block between rigid cones): its line integral keeps growing toward the face, and
+    both arms say so; before, the centre-line fit turned the search's 80 deg to 88 and 85 deg and called
+    both arms bands of 5 and 13 mm."""
+    from femgran.band import measure_arms
+
+    side = np.exp(-(W - POINTS[:, 0]) / h)
+    for arm in measure_arms(POINTS, side, element_size=h):
+        assert not arm.localised and arm.verdict == "toward a face"
+        assert arm.angle_method.startswith("line integral (largest on an end") and arm.angle_deg == 80.0
+
+
 def test_bad_input_is_named():
     with pytest.raises(ValueError, match="element_size = 0"):
         measure_band(POINTS, np.ones(len(POINTS)), element_size=0)
