@@ -268,11 +268,45 @@ def _plot(rows, path):
     plt.close(fig)
 
 
+def _forming_and_final(row, window: float = 0.005) -> dict:
+    """The band of ``row``'s run in the first and the last window of ``window`` axial strain after the peak
+    (:func:`femgran.band.band_history`): the band as it forms, which the Coulomb, Roscoe and Arthur angles
+    speak to, and where the run ends. Of the last window's two arms, the band (the stronger one if both
+    are); a window without one gives its stronger arm, with ``localised`` 0 and its fitted width."""
+    from femgran.band import band_history
+
+    keys = ("angle_deg", "thickness_m", "localised", "rising", "peak_width_m", "section_m", "contrast")
+    windows = band_history(row["folder"], window)
+    if not len(windows):  # the run ended at its peak: no window after it
+        return {name: {**dict.fromkeys(keys, float("nan")), "localised": 0.0, "eps": (float("nan"),) * 2}
+                for name in ("forming", "final")}
+    out = {}
+    for name, i in (("forming", 0), ("final", len(windows) - 1)):
+        prefix = "" if windows["localised"][i] or not windows["conjugate_localised"][i] else "conjugate_"
+        out[name] = {key: float(windows[prefix + key][i]) for key in keys}
+        out[name]["eps"] = (float(windows["eps_from"][i]), float(windows["eps_to"][i]))
+    return out
+
+
+def _describe(name: str, b: dict) -> str:
+    """One window of :func:`_forming_and_final` in words."""
+    if np.isnan(b["eps"][0]):
+        return f"{name}: no window after the peak"
+    head = f"{name} ({100 * b['eps'][0]:.2f}-{100 * b['eps'][1]:.2f} %): "
+    if b["localised"]:
+        return head + (f"band at {b['angle_deg']:.1f} deg, {'rising' if b['rising'] else 'falling'}, "
+                       f"{1e3 * b['thickness_m']:.1f} mm")
+    return head + (f"no band (widest peak {1e3 * b['peak_width_m']:.1f} mm of a section of "
+                   f"{1e3 * b['section_m']:.1f} mm, contrast {b['contrast']:.2g})")
+
+
 def _plot_alpha(rows, path):
-    """The band angle against the deposition angle, one line per variant and mesh, with the Coulomb, Roscoe
-    and Arthur angles from each run's own peak (an open marker: the detector found no localised band); and
-    beside it, for the finest mesh of the first variant, the deviatoric strain increment from the peak to the
-    end of each run (the bands of the post-peak path)."""
+    """The band angle against the deposition angle, one line per variant and mesh, in the first window of
+    0.5 % axial strain after the peak (circles: the band as it forms) and in the last (squares), with the
+    Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
+    zone or a diffuse field: :attr:`femgran.band.Band.verdict`); and beside it, for the finest mesh of the
+    first variant, the deviatoric strain increment from the peak to the end of each run. Prints each run's
+    two windows."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -291,18 +325,27 @@ def _plot_alpha(rows, path):
         if len(sel) < 2:
             continue
         a = np.array([r["alpha_deg"] for r in sel])
-        angle = np.array([r["band_angle_deg"] for r in sel], float)
-        band = np.array([bool(r["localised"]) for r in sel])
-        ax.plot(a, angle, "-", color=f"C{i}", lw=0.8)
-        ax.scatter(a[band], angle[band], color=f"C{i}", label=f"{variant}, {n} elements across")
-        ax.scatter(a[~band], angle[~band], facecolors="none", edgecolors=f"C{i}")
+        bands = [_forming_and_final(r) for r in sel]
+        for r, b in zip(sel, bands):
+            print(f"{variant}, {n} elements, alpha {r['alpha_deg']:g}: "
+                  + "; ".join(_describe(name, b[name]) for name in ("forming", "final")), flush=True)
+        for name, marker, ls in (("forming", "o", "-"), ("final", "s", "--")):
+            angle = np.array([b[name]["angle_deg"] for b in bands])
+            band = np.array([bool(b[name]["localised"]) for b in bands])
+            label = f"{variant}, {n} elements across, {'as it forms' if name == 'forming' else 'last window'}"
+            ax.plot(a, angle, ls, color=f"C{i}", lw=0.8, label=label)
+            ax.scatter(a[band], angle[band], color=f"C{i}", marker=marker)
+            ax.scatter(a[~band], angle[~band], facecolors="none", edgecolors=f"C{i}", marker=marker)
         if i == 0:
             for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
                 ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
-           title="the band against the bedding\n(whole post-peak increment; open: no localised band)")
+           title="the band against the bedding, first (o) and last (s) 0.5 % window\n"
+                 "after the peak; open: no band in that window (a zone or diffuse)")
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=7)
+    low, high = ax.get_ylim()
+    ax.set_ylim(low - 0.35 * (high - low), high)  # room for the legend below the markers
+    ax.legend(fontsize=7, loc="lower center", ncol=2)
     ax.grid(alpha=0.3)
     for k, r in enumerate(panels):
         axf = fig.add_subplot(grid[0, 1 + k])
