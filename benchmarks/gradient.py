@@ -6,8 +6,8 @@
 
 ``--law cpa``: the shear-band study of examples/fe_04 (CPA ottawa_c109 with softening, E = 60 MPa, step
 stabilisation 0.1, rough platens, weak corner, p0 = 100 kPa) to 4.2 % in 168 steps, the crack band against
-the implicit gradient (l = 6 mm) and the gradient back stress (H_g = 1 MPa, l_b = 6 mm; six more nodal
-fields).
+the implicit gradient (l = 6 mm) and the gradient back stress (H_g = 1 MPa, l_b = 6 mm; four more nodal
+fields in plane strain).
 
 Prints the wall time of each (best of ``--repeat``), the Newton iterations per step, and the ratio
 gradient / baseline (the run without the gradient, in the same process), and for the CPA law the back

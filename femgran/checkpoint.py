@@ -127,13 +127,27 @@ def identity_changes(saved: dict, now: dict, prefix: str = "") -> list[str]:
     return changed
 
 
+def _unknowns(solver, u: np.ndarray, what: str) -> np.ndarray:
+    """A copy of the checkpoint's unknown vector ``what`` for the solver's discretisation, which may adapt
+    an earlier layout of its fields (``adapt_unknowns``: the back stress's six fields in plane strain);
+    a vector of another length raises ``ValueError`` naming both."""
+    disc = solver.disc
+    adapt = getattr(disc, "adapt_unknowns", None)
+    if adapt is not None:
+        return np.array(adapt(u, what), copy=True)
+    if np.shape(u) != (disc.ndofs,):
+        raise ValueError(f"checkpoint {what}: {np.shape(u)[0]} unknowns, where this run's mesh and fields have "
+                         f"{disc.ndofs}: the checkpoint belongs to another run")
+    return np.array(u, copy=True)
+
+
 def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     """Put the solver where the checkpoint was (its stage set already, :meth:`NewtonSolver.set_stage`); returns
     the run state the solver's ``run(resume=...)`` takes."""
     pts = solver.points
-    solver.u = arrays["u"].copy()
+    solver.u = _unknowns(solver, arrays["u"], "u")
     if "u_start" in arrays:
-        solver.u_start = arrays["u_start"].copy()
+        solver.u_start = _unknowns(solver, arrays["u_start"], "u_start")
     solver.t = float(info["t"]) * scale  # scale: old end / new end of an extended loading stage
     pts.stress = arrays["stress"].copy()
     pts.state = {k[len("state__"):]: arrays[k].copy() for k in arrays if k.startswith("state__")}
@@ -141,7 +155,7 @@ def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     solver._committed_tangent = committed_tangent(arrays)
     solver._last_increment = None
     if "last_du" in arrays:  # (du, dt) of the last step, and its dc under path control
-        solver._last_increment = (arrays["last_du"].copy(), float(info["last_dt"]) * scale) + \
+        solver._last_increment = (_unknowns(solver, arrays["last_du"], "last_du"), float(info["last_dt"]) * scale) + \
             ((float(info["last_dc"]),) if info.get("last_dc") is not None else ())
     return {"dt": float(info["dt"]) * scale, "n_step": int(info["n_step"]), "history": info["history"],
             "residual_log": info["residual_log"]}

@@ -219,7 +219,7 @@ def run(case, material=None, *, solver=None, output: Output | None = None, resum
     elsewhere = not isinstance(resume, bool) and resume is not None
     if resume is not False and resume is not None:
         saved, scale = _checkpoint_to_resume(Path(resume) if elsewhere else out_dir, params,
-                                             getattr(case, "extend", None))
+                                             getattr(case, "extend", None), problem.disc)
     continuing = saved is not None and not elsewhere  # the same folder: its files go on
     log = newton_log(out_dir, saved[1]["newton_log_rows"] if continuing else None)
     newton = NewtonSolver(problem.disc, problem.material, problem.dirichlet, f_fixed=problem.f_fixed,
@@ -368,9 +368,11 @@ def _rescale_history(info: dict, scale: float, out_dir) -> None:
         info["writer"]["count"] = len(info["history"])
 
 
-def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None):
+def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None, disc=None):
     """The checkpoint to resume from and the scale of its load factor: 1, or old end / new end when the only
-    change is the case's ``extend`` field (e.g. a larger target settlement)."""
+    change is the case's ``extend`` field (e.g. a larger target settlement). A different ``ndofs`` is no
+    change when the discretisation ``disc`` takes up the checkpoint's vectors (its ``adapt_unknowns``: the
+    plane-strain back stress from a checkpoint of six fields)."""
     from femgran import checkpoint as ck
     from material.table import jsonable
 
@@ -383,6 +385,13 @@ def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None):
     arrays, info = ck.load(path)
     now = jsonable(params)
     changes = ck.identity_changes(info["identity"], now)
+    saved_ndofs = info["identity"].get("ndofs")
+    if hasattr(disc, "adapt_unknowns") and saved_ndofs != now.get("ndofs"):
+        try:
+            disc.adapt_unknowns(np.zeros(int(saved_ndofs)))
+            changes = [c for c in changes if not c.startswith("ndofs:")]
+        except (TypeError, ValueError):
+            pass  # another layout: the change stays and is reported
     scale = 1.0
     if extend and changes and all(c.startswith(f"{extend}:") for c in changes):
         old, new = info["identity"][extend], now[extend]
