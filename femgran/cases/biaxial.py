@@ -374,9 +374,11 @@ def _band_plot(band: Band, points, intensity, path: Path, conjugate: Band | None
         dist, mean, fit = band.profile
         pr.plot(1e3 * dist, mean, "o", ms=3, label="mean in strips")
         pr.plot(1e3 * dist, fit, "-", label=f"fit: thickness {1e3 * band.thickness_m:.2f} mm" if band.localised
-                else "fit: no band")
+                else f"fit: no band ({band.verdict})")
+    zone = (f"no band: a zone {1e3 * band.peak_width_m:.1f} mm wide, of a section of {1e3 * band.section_m:.1f} mm"
+            if band.verdict == "zone" else "no localised band")
     ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]",
-           title=(f"band at {band.angle_deg:.1f} deg" if band.localised else "no localised band")
+           title=(f"band at {band.angle_deg:.1f} deg" if band.localised else zone)
            + ("" if band.angle_method in ("centre line", "none") else "\n" + band.angle_method))
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12))  # below: the field stays clear
     pr.set(xlabel="distance across the band [mm]", ylabel="deviatoric strain increment",
