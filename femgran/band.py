@@ -53,8 +53,9 @@ non-negative intensity at each (e.g. the deviatoric strain increment after the p
    the specimen's whole extent across the band, about twice the section for a specimen 3 W tall, and
    called that zone a band; before (c) the other arm's search at alpha = 90 deg, turned to 89.6 deg by the
    centre-line fit, took a column of elements along the free side (0.7 mm wide, contrast 1e12) for a band.
-   A diffuse field or a zone gets no thickness (NaN); :attr:`Band.peak_width_m` keeps the fitted width. An X of two conjugate bands is a band: the profile across one of them
-   has its peak, the other crosses it as a broad bump that the fit takes as background.
+   A diffuse field or a zone gets no thickness (NaN); :attr:`Band.peak_width_m` keeps the fitted width.
+   An X of two conjugate bands is a band: the profile across one of them has its peak, the other crosses
+   it as a broad bump that the fit takes as background.
 4. **Both arms** -- :func:`measure_arms` measures the band of each family of orientations, rising (the
    band's direction between 0 and 90 deg from the x axis) and falling (90 to 180 deg), the stronger first:
    a diamond or an X of conjugate bands is measured whole. (Measured with the earlier search on the CPA
@@ -408,8 +409,8 @@ and a window longer than the whole post-peak path is that path). In each, the in
 
     Returns a :class:`material.table.Table`, one row per window: ``eps_from``, ``eps_to``, ``q_from_kPa``,
     ``q_to_kPa``, and for the stronger arm and the other one (``conjugate_``) ``angle_deg``, ``thickness_m``,
-    ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`). ``femgran band RUN_FOLDER`` writes it as
-    ``band_history.csv``.
+    ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`).
+    ``femgran band RUN_FOLDER`` writes it as ``band_history.csv``.
     """
     from material.table import Table
 

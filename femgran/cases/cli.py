@@ -440,7 +440,8 @@ def _band_history(args) -> int:
                 arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
                             f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f}")
             elif r[prefix + "contrast"] >= CONTRAST and too_wide(r[prefix + "peak_width_m"], r[prefix + "section_m"]):
-                arms.append(f"{'zone ' + format(1e3 * r[prefix + 'peak_width_m'], '.1f') + ' of ' + format(1e3 * r[prefix + 'section_m'], '.1f'):>26}")
+                zone = f"zone {1e3 * r[prefix + 'peak_width_m']:.1f} of {1e3 * r[prefix + 'section_m']:.1f}"
+                arms.append(f"{zone:>26}")
             else:
                 arms.append(f"{'no band':>26}")
         print(f"{100 * r['eps_from']:8.2f} -{100 * r['eps_to']:6.2f}   {r['q_from_kPa']:6.1f} -{r['q_to_kPa']:6.1f}   "
