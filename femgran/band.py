@@ -48,7 +48,7 @@ non-negative intensity at each (e.g. the deviatoric strain increment after the p
    Widths in windows of 0.5 % axial strain after the peak (``femgran band``, 320 steps to 8 %, specimens
    3 W tall; the shear-band study of ``docs/regularisation.md``): the crack band on 18 elements 0.16-0.28
    of the section; the gradient back stress at alpha = 30 and 60 deg, thin rising bands, 0.07-0.26; at
-   alpha = 0, 0.39-0.47 while the band forms, then 0.5-0.95 as it widens into a zone; at alpha = 90 deg a
+   alpha = 0, 0.39-0.47 while the band forms, then 0.51-0.90 as it widens into a zone; at alpha = 90 deg a
    zone of 0.71-0.85 from the peak on, between the platens' rigid cones. Before (b) compared the width with
    the specimen's whole extent across the band, about twice the section for a specimen 3 W tall, and
    called that zone a band; before (c) the other arm's search at alpha = 90 deg, turned to 89.6 deg by the
@@ -87,7 +87,7 @@ CONTRAST = 1.0
 #: on the arms of the X of the CPA gradient runs (36 and 48 elements), 0.1-2 deg on clean bands.
 REFINE_DEG = 15.0
 #: ... and be no wider (full width at half maximum) than this fraction of the specimen's section across the
-#: band (module docstring, section 3; measured widths: 0.07-0.47 for bands, 0.5-0.95 for the zones).
+#: band (module docstring, section 3; measured widths: 0.07-0.47 for bands, 0.51-1.2 for zones).
 MAX_WIDTH_FRACTION = 0.5
 
 
