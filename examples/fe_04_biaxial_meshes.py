@@ -10,7 +10,8 @@ t = 6 mm smeared over the element size h: crack band) and unregularised (every e
 it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
 and ``back_stress`` (the gradient back stress X = H (eps_p - ebar_p) of ``--back-stress H L``,
 docs/regularisation.md, section 5) regularise with a length instead, and ``--alphas`` runs every mesh and
-variant at several deposition angles (``band_vs_alpha.png``: the band angle against alpha).
+variant at several deposition angles (``band_vs_alpha.png``: the band angle against alpha as the band
+forms, in the first 0.5 % of axial strain after the peak, and in the last 0.5 %).
 
 Stiffness. The study uses E = 60 MPa (a dense sand; ``--youngs-modulus``), not the thesis's 6 MPa: a
 band that softens over a slip s releases the elastic energy of the whole specimen, and the post-peak
