@@ -262,7 +262,9 @@ class BackStressDiscretisation(Discretisation):
     |ebar_p,xz|, |ebar_p,yz| <= 1.9e-19, against |eps_p| = 0.22. Every residual checks that the law's
     plastic strain keeps them within :data:`PLANE_TOLERANCE` of its largest component and raises a
     ``ValueError`` saying what to do where it does not; ``components=ALL_COMPONENTS`` carries all six.
-    The two fewer fields take a quarter of the unknowns and their couplings out of the linear system.
+    The two fewer fields take a quarter of the unknowns and their couplings out of the linear system:
+    ``python benchmarks/gradient.py --law cpa`` (idle machine) measured 1.79 times the crack band's time
+    with four fields, 3.57 with six.
     """
 
     nonlocal_name = "nonlocal_plastic_strain"
