@@ -134,7 +134,7 @@ def _unknowns(solver, u: np.ndarray, what: str) -> np.ndarray:
     disc = solver.disc
     adapt = getattr(disc, "adapt_unknowns", None)
     if adapt is not None:
-        return np.array(adapt(u, what), copy=True)
+        return np.array(adapt(u, f"checkpoint {what}"), copy=True)
     if np.shape(u) != (disc.ndofs,):
         raise ValueError(f"checkpoint {what}: {np.shape(u)[0]} unknowns, where this run's mesh and fields have "
                          f"{disc.ndofs}: the checkpoint belongs to another run")
@@ -155,7 +155,8 @@ def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
     solver._committed_tangent = committed_tangent(arrays)
     solver._last_increment = None
     if "last_du" in arrays:  # (du, dt) of the last step, and its dc under path control
-        solver._last_increment = (_unknowns(solver, arrays["last_du"], "last_du"), float(info["last_dt"]) * scale) + \
+        last_du = _unknowns(solver, arrays["last_du"], "last_du")
+        solver._last_increment = (last_du, float(info["last_dt"]) * scale) + \
             ((float(info["last_dc"]),) if info.get("last_dc") is not None else ())
     return {"dt": float(info["dt"]) * scale, "n_step": int(info["n_step"]), "history": info["history"],
             "residual_log": info["residual_log"]}
