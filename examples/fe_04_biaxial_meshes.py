@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from femgran.band import CONTRAST, too_wide
+from femgran.band import is_zone
 from femgran.solver import History
 from material.sweep import Run, sweep
 from material.table import Table
@@ -170,7 +170,7 @@ def _say(rec) -> None:
     ref = {k: s.get(f"reference_angles_deg_{k}", float("nan")) for k in ("coulomb", "roscoe", "arthur")}
     band = f"band at {s['band_angle_deg']:.1f} deg" if s.get("localised") else "no localised band"
     width, section = s.get("band_peak_width_m", float("nan")), s.get("band_section_m", float("nan"))
-    if not s.get("localised") and s.get("band_contrast", 0.0) >= CONTRAST and too_wide(width, section):
+    if not s.get("localised") and is_zone(s.get("band_contrast", 0.0), width, section):
         band = f"no band: a zone {1e3 * width:.1f} mm wide of a section of {1e3 * section:.1f} mm"
     if s.get("localised") and s.get("band_angle_method", "centre line") != "centre line":
         band += f" ({s['band_angle_method']})"

@@ -74,7 +74,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["Band", "measure_band", "measure_arms", "band_history", "written_steps", "read_cells",
-           "deviatoric_intensity", "too_wide", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
+           "deviatoric_intensity", "too_wide", "is_zone", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
 
 #: The families of band orientations :func:`measure_band` searches: both, or the band's direction rising
 #: (0 to 90 deg from the x axis) or falling (90 to 180 deg).
@@ -146,9 +146,7 @@ class Band:
             return "none"
         if self.angle_method.startswith("line integral (largest on an end"):
             return "toward a face"
-        if not self.contrast >= CONTRAST:
-            return "diffuse"
-        return "zone" if too_wide(self.peak_width_m, self.section_m) else "diffuse"
+        return "zone" if is_zone(self.contrast, self.peak_width_m, self.section_m) else "diffuse"
 
     @property
     def from_line_integral(self) -> bool:
@@ -272,6 +270,13 @@ def too_wide(peak_width: float, section: float) -> bool:
     """Whether a peak of full width at half maximum ``peak_width`` is too wide to be a band in a section of
     ``section`` across it (:data:`MAX_WIDTH_FRACTION`; module docstring, section 3)."""
     return bool(peak_width > MAX_WIDTH_FRACTION * section)
+
+
+def is_zone(contrast: float, peak_width: float, section: float) -> bool:
+    """Whether a fitted peak is a deforming zone (:attr:`Band.verdict` ``"zone"``): it rises above its
+    background (``contrast`` >= :data:`CONTRAST`) but is :func:`too_wide` for its ``section``. Takes the
+    numbers a run's summary or ``band_history.csv`` keeps."""
+    return bool(contrast >= CONTRAST and too_wide(peak_width, section))
 
 
 def _section(x, centre, t: float, element_size: float) -> float:

@@ -428,7 +428,7 @@ def _ellipticity(args) -> int:
 
 
 def _band_history(args) -> int:
-    from femgran.band import CONTRAST, band_history, too_wide
+    from femgran.band import band_history, is_zone
 
     table = band_history(args.run_folder, args.window, name=args.name)
     path = table.write_csv(Path(args.run_folder) / "band_history.csv")
@@ -439,7 +439,7 @@ def _band_history(args) -> int:
             if r[prefix + "localised"]:
                 arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
                             f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f}")
-            elif r[prefix + "contrast"] >= CONTRAST and too_wide(r[prefix + "peak_width_m"], r[prefix + "section_m"]):
+            elif is_zone(r[prefix + "contrast"], r[prefix + "peak_width_m"], r[prefix + "section_m"]):
                 zone = f"zone {1e3 * r[prefix + 'peak_width_m']:.1f} of {1e3 * r[prefix + 'section_m']:.1f}"
                 arms.append(f"{zone:>26}")
             else:
