@@ -325,28 +325,33 @@ class BackStressDiscretisation(Discretisation):
                              f"({n0} displacements and {self.n_components} fields of {nb}) or {n0 + 6 * nb} "
                              "(all six fields): the checkpoint belongs to another run")
         fields = u[n0:].reshape(6, nb)
-        scale = max(float(np.abs(fields).max()), 1e-300)
-        dropped = float(np.abs(fields[list(self._dropped)]).max()) if self._dropped else 0.0
-        if dropped > PLANE_TOLERANCE * scale:
+        dropped, scale = self._dropped_size(fields.T)
+        if dropped.max() > PLANE_TOLERANCE * scale:
             raise ValueError(f"{what}: the components {self._dropped} of ebar_p, which this discretisation does "
-                             f"not carry, reach {dropped:.3g} (of {scale:.3g}): resume with components=ALL_COMPONENTS")
+                             f"not carry, reach {dropped.max():.3g} (of {scale:.3g}): resume with "
+                             "components=ALL_COMPONENTS")
         return np.concatenate([u[:n0], fields[list(self.components)].ravel()])
+
+    def _dropped_size(self, mandel: np.ndarray) -> tuple[np.ndarray, float]:
+        """(the largest dropped component of each row of ``mandel`` (n, 6), the largest component of all): the
+        check against :data:`PLANE_TOLERANCE` that the components this discretisation leaves out are zero."""
+        scale = max(float(np.abs(mandel).max(initial=0.0)), 1e-300)
+        if not self._dropped:
+            return np.zeros(len(mandel)), scale
+        return np.abs(mandel[:, list(self._dropped)]).max(axis=1), scale
 
     def _carried(self, plastic_strain) -> np.ndarray:
         """The Mandel components of the law's plastic strain (N, 3, 3) this discretisation carries, (N, k),
         after checking that the others stay zero (class docstring)."""
         full = to_mandel(np.asarray(plastic_strain))
-        if self._dropped:
-            scale = max(float(np.abs(full).max()), 1e-300)
-            dropped = np.abs(full[:, list(self._dropped)])
-            if dropped.max() > PLANE_TOLERANCE * scale:
-                point = int(np.argmax(dropped.max(axis=1)))
-                raise ValueError(
-                    f"the law's plastic strain has out-of-plane shears (Mandel components {self._dropped}: "
-                    f"{dropped.max():.3g} at point {point}, against {scale:.3g}), which the plane-strain back "
-                    "stress does not carry: give the material its e3 out of the plane (material.factory."
-                    "plane_strain_axes) and a rule closed under the reflection z -> -z, or build the "
-                    "discretisation with components=ALL_COMPONENTS")
+        dropped, scale = self._dropped_size(full)
+        if dropped.max(initial=0.0) > PLANE_TOLERANCE * scale:
+            raise ValueError(
+                f"the law's plastic strain has out-of-plane shears (Mandel components {self._dropped}: "
+                f"{dropped.max():.3g} at point {int(np.argmax(dropped))}, against {scale:.3g}), which the "
+                "plane-strain back stress does not carry: give the material its e3 out of the plane (material."
+                "factory.plane_strain_axes) and a rule closed under the reflection z -> -z, or build the "
+                "discretisation with components=ALL_COMPONENTS")
         return full[:, list(self.components)]
 
     # ------------------------------------------------------------------ residual and Newton matrix
