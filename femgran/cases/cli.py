@@ -96,7 +96,7 @@ def _material_flags(p):
                         "instead of the crack band (docs/regularisation.md)")
     g.add_argument("--back-stress", type=float, nargs=2, default=None, metavar=("H", "L"),
                    help="CPA: a gradient back stress H (eps_p - ebar_p) on every plane, H [kPa], ebar_p the "
-                        "plastic strain smoothed over the length L [m] (six more nodal fields; "
+                        "plastic strain smoothed over the length L [m] (four more nodal fields in plane strain, six in 3D; "
                         "docs/regularisation.md section 5)")
     g.add_argument("--E", type=float, default=3e4, help="Young's modulus of the reference laws [kPa]")
     g.add_argument("--nu", type=float, default=0.3, help="Poisson's ratio of the reference laws")
