@@ -6,14 +6,14 @@
 
 ``--law cpa``: the shear-band study of examples/fe_04 (CPA ottawa_c109 with softening, E = 60 MPa, step
 stabilisation 0.1, rough platens, weak corner, p0 = 100 kPa) to 4.2 % in 168 steps, the crack band against
-the implicit gradient (l = 6 mm) and the gradient back stress (H_g = 1 MPa, l_b = 6 mm; four more nodal
-fields in plane strain).
+the implicit gradient (l = 6 mm) and the gradient back stress (H_g = 1 MPa, l_b = 6 mm unless ``--back-stress H L``;
+four more nodal fields in plane strain).
 
 Prints the wall time of each (best of ``--repeat``), the Newton iterations per step, and the ratio
 gradient / baseline (the run without the gradient, in the same process), and for the CPA law the back
 stress's too.
 
-    python benchmarks/gradient.py [--law von_mises|cpa] [--resolution R] [--steps S] [--repeat 3]
+    python benchmarks/gradient.py [--law von_mises|cpa] [--resolution R] [--steps S] [--repeat 3] [--back-stress H L]
 """
 
 from __future__ import annotations
@@ -34,8 +34,9 @@ def _once(law, case):
     return time.perf_counter() - t0, sol
 
 
-def _setups(which: str, resolution: int | None, steps: int | None):
-    """(laws {name: law}, the case) of ``which``; the first law is the baseline."""
+def _setups(which: str, resolution: int | None, steps: int | None, back_stress=(1000.0, 0.006)):
+    """(laws {name: law}, the case) of ``which``; the first law is the baseline. ``back_stress`` is (H_g [kPa],
+    l_b [m]) of the CPA law's back stress."""
     if which == "von_mises":
         laws = {"local": VonMises(20000.0, 0.3, 150.0, -1000.0),
                 "gradient": GradientVonMises(20000.0, 0.3, 150.0, -1000.0, length_m=0.01)}
@@ -48,7 +49,7 @@ def _setups(which: str, resolution: int | None, steps: int | None):
             "gradient": make_material(params, alpha_deg=0.0, plane_strain=True, stabilisation=0.1,
                                       nonlocal_length=0.006),
             "back stress": make_material(params, alpha_deg=0.0, plane_strain=True, stabilisation=0.1,
-                                         back_stress_modulus=1000.0, back_stress_length=0.006)}
+                                         back_stress_modulus=back_stress[0], back_stress_length=back_stress[1])}
     return laws, Biaxial(p0_kPa=100.0, axial_strain=0.042, steps=steps or 168, resolution=resolution or 12,
                          imperfection=0.0, weak_zone=0.1, weak_zone_height=1.0 / 12.0, weak_zone_size=1.0 / 3.0,
                          platens="rough")  # the set-up of examples/fe_04_biaxial_meshes.py
@@ -61,8 +62,12 @@ def main(argv=None) -> float:
                                                                    "the local run completes; cpa: 12)")
     ap.add_argument("--steps", type=int, default=None)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--back-stress", type=float, nargs=2, default=[1000.0, 0.006], metavar=("H", "L"),
+                    help="cpa: the back stress's modulus H [kPa] and length l_b [m] (default 1000 0.006)")
     args = ap.parse_args(argv)
-    laws, case = _setups(args.law, args.resolution, args.steps)
+    if args.back_stress[0] <= 0 or args.back_stress[1] <= 0:
+        ap.error(f"--back-stress: H and L must be > 0, got {args.back_stress[0]:g} {args.back_stress[1]:g}")
+    laws, case = _setups(args.law, args.resolution, args.steps, tuple(args.back_stress))
     for law in laws.values():
         _once(law, dataclasses.replace(case, resolution=2, steps=2))  # compile
     best = {}
