@@ -326,7 +326,7 @@ class BackStressDiscretisation(Discretisation):
                              "(all six fields): the checkpoint belongs to another run")
         fields = u[n0:].reshape(6, nb)
         dropped, scale = self._dropped_size(fields.T)
-        if dropped.max() > PLANE_TOLERANCE * scale:
+        if dropped.max(initial=0.0) > PLANE_TOLERANCE * scale:
             raise ValueError(f"{what}: the components {self._dropped} of ebar_p, which this discretisation does "
                              f"not carry, reach {dropped.max():.3g} (of {scale:.3g}): resume with "
                              "components=ALL_COMPONENTS")
