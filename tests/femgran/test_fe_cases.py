@@ -294,6 +294,25 @@ def test_a_stabilised_footing_converges_in_the_step_with_a_relaxation_time_of_it
     assert abs(fixed[40] - fixed[20]) < 0.6 * abs(fixed[20] - fixed[10])
 
 
+def test_a_compaction_fade_of_20_kPa_carries_the_thesis_footing_at_the_price_of_its_dilatancy():
+    """The law change (b) of docs/cpa_law.md, section 4, in its simplest form: with ``compaction_stress``
+    20 kPa instead of 2 the planes' non-associated compaction fades where the footing's points lost the
+    uniqueness of their rate problem (4-16 kPa), and the thesis sand's footing at alpha = 0, which stops at
+    0.071 B with the thesis's law, reaches 0.1 B without the step stabilisation: 40 steps of 3.77 Newton
+    iterations, 321.0 kPa (80 steps: 321.1). The price is the thesis's dilatancy: in drained triaxial
+    compression at p0 = 50 kPa the final dilation grows from 5.11 to 6.38 % (the peak q by 0.1 %)."""
+    sol = footing({"preset": "ottawa_c109", "set": {"compaction_stress": 20.0}}, 1.0, 18.0, 0.0, True,
+                  alpha_deg=0.0, plots=False)
+    assert sol.completed, sol.stop_reason
+    iterations = sol.history["iterations"][1:]
+    assert iterations.mean() <= 5.0 and (sol.history["residual"][1:] <= 1e-8).all()
+    assert sol.extra["pressure_at_10pct_kPa"] == pytest.approx(321.0, rel=0.01)
+    tx = {pc: driver.triaxial(CPAModel(load_preset("ottawa_c109").replace(compaction_stress=pc)), p0_kPa=50.0,
+                              alpha_deg=0.0, axial_strain=0.15, steps=300) for pc in (2.0, 20.0)}
+    assert tx[20.0]["eps_v"][-1] == pytest.approx(1.25 * tx[2.0]["eps_v"][-1], rel=0.03)
+    assert tx[20.0]["q_kPa"].max() == pytest.approx(tx[2.0]["q_kPa"].max(), rel=0.005)
+
+
 def test_footing_summary_says_where_the_tangent_has_lost_ellipticity(tmp_path):
     """Rice's condition on the committed tangent at the end of a run (``non_elliptic_points``). The thesis
     sand (non-associated flow) loses it under the footing while it still hardens: no point at s = 0.01 B,
