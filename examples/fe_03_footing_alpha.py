@@ -9,6 +9,9 @@ law is not uniquely solvable at a few points near failure and the runs stop betw
 (``docs/cpa_law.md``, section 4). The stabilisation's overstress raises the pressures: at s = 0.1 B
 ``--stabilisation 0.01`` gives 2.7-5 % less at 15-90 deg (in two to three times the steps) and lets a
 second mechanism form at 0 deg; each run's ``summary.json`` has ``stabilisation_overstress_p99``.
+``--preset``, ``--params FILE`` and ``--set KEY=VALUE`` change the sand as on the command line: e.g.
+``--stabilisation 0 --set compaction_stress=20`` runs the wider compaction fade that carries every angle
+without the stabilisation at the price of the thesis's dilatancy (``docs/cpa_law.md``, section 4).
 ``--relaxation-times TAU ...`` gives the stabilisation relaxation times of its own instead of one nominal
 step, each run with max(40, 1/TAU) nominal steps, so that every curve is converged in the step and the
 curves tend to the thesis's law as TAU -> 0 (``docs/cpa_law.md``, section 4). Writes
@@ -18,6 +21,7 @@ bedding inclines.
 
     python examples/fe_03_footing_alpha.py [--quick] [--alphas 0 45 90] [--surcharge 10]
     python examples/fe_03_footing_alpha.py --relaxation-times 0.025 0.00625 0.0015625
+    python examples/fe_03_footing_alpha.py --stabilisation 0 --set compaction_stress=20 --out out/fe_03_pc20
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from femgran.cases import footing
+from material.commandline import add_parameters, parameters_from_args
 from material.factory import make_material
 from material.table import TableWriter
 
@@ -72,7 +77,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--relaxation-times", type=float, nargs="+", metavar="TAU",
                     help="relaxation times of the stabilisation in load factor, one series of runs each with "
                          "max(steps, 1/TAU) nominal steps (default: one nominal step)")
+    add_parameters(ap)
     args = ap.parse_args(argv)
+    params = parameters_from_args(args)
     res, steps, alphas = (2, 20, (0.0, 90.0)) if args.quick else (3, 40, tuple(range(0, 91, 15)))
     alphas = tuple(float(a) for a in (args.alphas or alphas))
     taus = tuple(args.relaxation_times or (None,))
@@ -87,7 +94,7 @@ def main(argv=None) -> dict:
     for tau in taus:
         n = steps if tau is None else max(steps, int(np.ceil(1.0 / tau - 1e-9)))
         for a in alphas:
-            mat = make_material(None, alpha_deg=a, plane_strain=True, stabilisation=args.stabilisation,
+            mat = make_material(params, alpha_deg=a, plane_strain=True, stabilisation=args.stabilisation,
                                 relaxation_time=tau)
             name = f"alpha_{a:g}" if tau is None else f"tau_{tau:g}/alpha_{a:g}"
             sol = footing(mat, 1.0, 18.0, args.surcharge, True, a, settlement_m=0.1, steps=n, resolution=res,
