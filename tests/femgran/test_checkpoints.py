@@ -261,8 +261,21 @@ def test_a_kill_during_a_checkpoint_write_leaves_the_previous_one_and_a_corrupte
 
 
 KILLED_RUN = """
-import sys
+import pathlib, sys, time
+from femgran import checkpoint
 from femgran.cases import Footing, Triaxial, Output, run
+
+write_files = checkpoint.Checkpointer._write_files
+
+
+def write_then_hang(self, n, arrays, text):  # the run goes no further than one step past checkpoint 3
+    write_files(self, n, arrays, text)
+    if n == 3:
+        pathlib.Path(sys.argv[2], "checkpoint_3_on_disk").touch()
+        time.sleep(3600)
+
+
+checkpoint.Checkpointer._write_files = write_then_hang
 case = {"footing": Footing(resolution=1, steps=12, settlement_m=0.02),
         "triaxial": Triaxial(resolution=1, steps=12, axial_strain=0.02)}[sys.argv[1]]
 run(case, {"preset": "ottawa_c109", "stabilisation": 0.1},
@@ -283,14 +296,17 @@ def test_a_run_killed_mid_run_resumes_to_the_uninterrupted_run(tmp_path, name):
     full = run(case, SAND, output=Output(tmp_path / "full", plots=False))
     script = tmp_path / "killed.py"
     script.write_text(KILLED_RUN)
+    # the child holds after its third checkpoint (KILLED_RUN), so the kill lands mid-run however loaded the
+    # machine is; the deadline only keeps a broken child from hanging the test
     child = subprocess.Popen([sys.executable, str(script), name, str(tmp_path / "killed")])
-    deadline, checkpoints = time.time() + 120, tmp_path / "killed" / "checkpoints"
-    while time.time() < deadline and len(list(checkpoints.glob("step_*.json"))) < 2:
+    deadline, marker = time.time() + 900, tmp_path / "killed" / "checkpoint_3_on_disk"
+    while not marker.exists() and child.poll() is None and time.time() < deadline:
         time.sleep(0.02)
     child.send_signal(signal.SIGKILL)  # no chance to clean up
     child.wait()
+    assert marker.exists(), f"the child run did not reach its third checkpoint (exit code {child.returncode})"
     stopped_at = load(latest(tmp_path / "killed"))[1]["n_step"]
-    assert 0 < stopped_at < len(full.history) - 1  # killed in mid-run
+    assert stopped_at == 3 < len(full.history) - 1  # killed in mid-run
     resumed = run(case, SAND, output=Output(tmp_path / "killed", plots=False), resume=True)
     np.testing.assert_array_equal(resumed.u, full.u)
     np.testing.assert_array_equal(resumed.stress, full.stress)
