@@ -79,7 +79,10 @@ def main(argv=None) -> dict:
                          "max(steps, 1/TAU) nominal steps (default: one nominal step)")
     add_parameters(ap)
     args = ap.parse_args(argv)
-    params = parameters_from_args(args)
+    try:
+        params = parameters_from_args(args)
+    except (KeyError, ValueError, OSError) as err:  # an unknown key, a value out of range, a missing file
+        ap.error(str(err).strip('"'))
     res, steps, alphas = (2, 20, (0.0, 90.0)) if args.quick else (3, 40, tuple(range(0, 91, 15)))
     alphas = tuple(float(a) for a in (args.alphas or alphas))
     taus = tuple(args.relaxation_times or (None,))

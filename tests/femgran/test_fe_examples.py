@@ -49,6 +49,9 @@ def test_fe_03_takes_the_sand_from_the_command_line(tmp_path, load_example):
     wide = example.main([*common, "--set", "compaction_stress=20", "--out", str(tmp_path / "wide")])
     law = example.main([*common, "--out", str(tmp_path / "law")])
     assert wide[90.0] == pytest.approx(1.157 * law[90.0], rel=0.01)
+    with pytest.raises(SystemExit) as bad:  # an unknown key: argparse's error, naming the allowed ones
+        example.main([*common, "--set", "compaction_stres=20", "--out", str(tmp_path / "bad")])
+    assert bad.value.code == 2
 
 
 def test_fe_04_biaxial_meshes(tmp_path, load_example):
