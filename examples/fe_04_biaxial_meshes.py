@@ -322,9 +322,11 @@ def _plot_alpha(rows, path):
     groups = sorted({(r["variant"], r["resolution"]) for r in rows})
     finest = max((g for g in groups if g[0] == groups[0][0]), key=lambda g: g[1])
     panels = sorted((r for r in rows if (r["variant"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
-    fig = plt.figure(figsize=(6 + 2.2 * len(panels), 5))
+    entries = len([g for g in groups if sum(1 for r in rows if (r["variant"], r["resolution"]) == g) > 1]) + 3
+    fig = plt.figure(figsize=(6 + 2.2 * len(panels), 4.6 + 0.16 * entries))
     grid = fig.add_gridspec(1, 1 + len(panels), width_ratios=[2.6] + [1] * len(panels))
     ax = fig.add_subplot(grid[0, 0])
+    reference, legend = None, []
     for i, (variant, n) in enumerate(groups):
         sel = sorted((r for r in rows if (r["variant"], r["resolution"]) == (variant, n)), key=lambda r: r["alpha_deg"])
         if len(sel) < 2:
@@ -338,19 +340,24 @@ def _plot_alpha(rows, path):
             angle = np.array([b[name]["angle_deg"] for b in bands])
             band = np.array([bool(b[name]["localised"]) for b in bands])
             label = f"{variant}, {n} elements across, {'as it forms' if name == 'forming' else 'last window'}"
-            ax.plot(a, angle, ls, color=f"C{i}", lw=0.8, label=label)
+            (line,) = ax.plot(a, angle, ls, color=f"C{i}", lw=0.8, label=label)
+            if name == "forming":  # one legend entry per series: the title says which marker is which window
+                legend.append((line, f"{variant}, {n} elements across"))
             ax.scatter(a[band], angle[band], color=f"C{i}", marker=marker)
             ax.scatter(a[~band], angle[~band], facecolors="none", edgecolors=f"C{i}", marker=marker)
-        if i == 0:
-            for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
-                ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
+        if reference is None:
+            reference = (a, sel)
+    if reference is not None:  # the first series' own Coulomb, Roscoe and Arthur angles
+        a, sel = reference
+        for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
+            (line,) = ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
+            legend.append((line, ref))
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
            title="the band against the bedding, first (o) and last (s) 0.5 % window\n"
                  "after the peak; open: no band in that window (a zone or diffuse)")
     ax.title.set_fontsize(9)
-    low, high = ax.get_ylim()
-    ax.set_ylim(low - 0.35 * (high - low), high)  # room for the legend below the markers
-    ax.legend(fontsize=7, loc="lower center", ncol=2)
+    ax.legend(*zip(*legend), fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=1,
+              frameon=False)  # below the axes
     ax.grid(alpha=0.3)
     for k, r in enumerate(panels):
         axf = fig.add_subplot(grid[0, 1 + k])
