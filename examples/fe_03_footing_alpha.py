@@ -11,7 +11,8 @@ law is not uniquely solvable at a few points near failure and the runs stop betw
 second mechanism form at 0 deg; each run's ``summary.json`` has ``stabilisation_overstress_p99``.
 ``--preset``, ``--params FILE`` and ``--set KEY=VALUE`` change the sand as on the command line: e.g.
 ``--stabilisation 0 --set compaction_stress=20`` runs the wider compaction fade that carries every angle
-without the stabilisation at the price of the thesis's dilatancy (``docs/cpa_law.md``, section 4).
+on the default mesh without the stabilisation, at the price of the thesis's dilatancy (not a finer mesh at
+0 deg; ``docs/cpa_law.md``, section 4).
 ``--relaxation-times TAU ...`` gives the stabilisation relaxation times of its own instead of one nominal
 step, each run with max(40, 1/TAU) nominal steps, so that every curve is converged in the step and the
 curves tend to the thesis's law as TAU -> 0 (``docs/cpa_law.md``, section 4). Writes
