@@ -8,7 +8,10 @@ s = 0.1 B in 40 nominal steps) on the default mesh, four soils:
 * ``cpa-isotropic``: the CPA law as the same Mohr-Coulomb solid (isotropic eta = tan 30 deg,
   associated at failure: eta_c = 0, fast hardening A = 1e-5 m);
 * ``cpa-thesis``: the thesis sand ``ottawa_c109`` at alpha = 0, with every option at its default;
-* ``cpa-thesis-stabilised``: the same with the local step stabilisation of ``CPAModel``.
+* ``cpa-thesis-stabilised``: the same with the local step stabilisation of ``CPAModel``;
+* ``cpa-thesis-wide-fade``: the same without the stabilisation, its compaction fading below
+  ``--compaction-stress`` (default 20 kPa) instead of 2 kPa: a change of the law (``docs/cpa_law.md``,
+  section 4).
 
 Each run is timed in this process, after a warm-up that compiles the kernels; the ratio to the
 Drucker-Prager time is printed (target <= 5), and the material evaluations a law needs beyond the cone's:
@@ -27,7 +30,7 @@ import time
 import numpy as np
 
 
-def _material(name: str, E: float, stabilisation: float):
+def _material(name: str, E: float, stabilisation: float, compaction_stress: float = 20.0):
     from material import CPAModel, DruckerPrager, MohrCoulomb, load_preset
     from material.factory import plane_strain_axes
 
@@ -40,11 +43,14 @@ def _material(name: str, E: float, stabilisation: float):
                                                A=1e-5, E=E)
         return CPAModel(p, axes=plane_strain_axes(0.0))
     p = load_preset("ottawa_c109").replace(E=E)
+    if name == "cpa-thesis-wide-fade":
+        p = p.replace(compaction_stress=compaction_stress)
     mu = stabilisation if name == "cpa-thesis-stabilised" else 0.0
     return CPAModel(p, axes=plane_strain_axes(0.0), stabilisation=mu)
 
 
-SOILS = ("drucker-prager", "mohr-coulomb", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised")
+SOILS = ("drucker-prager", "mohr-coulomb", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised",
+         "cpa-thesis-wide-fade")
 
 
 def main(argv=None) -> None:
@@ -55,6 +61,8 @@ def main(argv=None) -> None:
     ap.add_argument("--resolution", type=int, default=3)
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--stabilisation", type=float, default=0.1, help="mu of cpa-thesis-stabilised")
+    ap.add_argument("--compaction-stress", type=float, default=20.0,
+                    help="p_c of cpa-thesis-wide-fade [kPa] (the law's default is 2)")
     ap.add_argument("--soils", nargs="+", default=list(SOILS), choices=SOILS)
     ap.add_argument("--surcharge", type=float, default=0.0, help="on the surface beside the footing [kPa]")
     args = ap.parse_args(argv)
@@ -62,8 +70,8 @@ def main(argv=None) -> None:
     rows = {}
     for soil in args.soils:
         t0 = time.perf_counter()
-        sol = footing(_material(soil, args.E, args.stabilisation), resolution=args.resolution, steps=args.steps,
-                      surcharge_kPa=args.surcharge, plots=False)
+        sol = footing(_material(soil, args.E, args.stabilisation, args.compaction_stress), resolution=args.resolution,
+                      steps=args.steps, surcharge_kPa=args.surcharge, plots=False)
         wall = time.perf_counter() - t0
         h = sol.history
         its = h["iterations"][1:]
