@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -65,8 +66,8 @@ def main(argv=None) -> float:
     ap.add_argument("--back-stress", type=float, nargs=2, default=[1000.0, 0.006], metavar=("H", "L"),
                     help="cpa: the back stress's modulus H [kPa] and length l_b [m] (default 1000 0.006)")
     args = ap.parse_args(argv)
-    if args.back_stress[0] <= 0 or args.back_stress[1] <= 0:
-        ap.error(f"--back-stress: H and L must be > 0, got {args.back_stress[0]:g} {args.back_stress[1]:g}")
+    if not all(math.isfinite(v) and v > 0 for v in args.back_stress):  # NaN too, as examples/fe_04 checks
+        ap.error(f"--back-stress: H and L must be > 0 (finite), got {args.back_stress[0]:g} {args.back_stress[1]:g}")
     laws, case = _setups(args.law, args.resolution, args.steps, tuple(args.back_stress))
     for law in laws.values():
         _once(law, dataclasses.replace(case, resolution=2, steps=2))  # compile
