@@ -322,15 +322,14 @@ def _plot_alpha(rows, path):
     groups = sorted({(r["variant"], r["resolution"]) for r in rows})
     finest = max((g for g in groups if g[0] == groups[0][0]), key=lambda g: g[1])
     panels = sorted((r for r in rows if (r["variant"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
-    entries = len([g for g in groups if sum(1 for r in rows if (r["variant"], r["resolution"]) == g) > 1]) + 3
-    fig = plt.figure(figsize=(6 + 2.2 * len(panels), 4.6 + 0.16 * entries))
+    series = [(i, g, sorted((r for r in rows if (r["variant"], r["resolution"]) == g), key=lambda r: r["alpha_deg"]))
+              for i, g in enumerate(groups)]
+    series = [(i, g, sel) for i, g, sel in series if len(sel) > 1]  # a line needs two angles
+    fig = plt.figure(figsize=(6 + 2.2 * len(panels), 4.6 + 0.16 * (len(series) + 3)))  # room for the legend
     grid = fig.add_gridspec(1, 1 + len(panels), width_ratios=[2.6] + [1] * len(panels))
     ax = fig.add_subplot(grid[0, 0])
     reference, legend = None, []
-    for i, (variant, n) in enumerate(groups):
-        sel = sorted((r for r in rows if (r["variant"], r["resolution"]) == (variant, n)), key=lambda r: r["alpha_deg"])
-        if len(sel) < 2:
-            continue
+    for i, (variant, n), sel in series:
         a = np.array([r["alpha_deg"] for r in sel])
         bands = [_forming_and_final(r) for r in sel]
         for r, b in zip(sel, bands):
