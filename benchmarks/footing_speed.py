@@ -19,12 +19,21 @@ for the CPA law that excess hardly changes with ``--steps`` (the events of the r
 changing while the mechanism forms), where the iterations per step do. Runs that share the cores disturb each other: run it on an
 idle machine, one numba thread (``NUMBA_NUM_THREADS=1``) for a per-core figure.
 
-    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...]
+``--profile`` runs each footing under ``cProfile`` and splits its time between the material update (every
+point, every global iterate and line-search trial), the linear solves, the assembly (stiffness, internal
+force, strains), the Newton log with its diagnostics, and the rest (these runs write no files). The ratio
+to the cone is the product of two factors, the material evaluations and the cost of each; the split says
+which one a change should aim at. The profiler slows the Python parts: take the split, not the times, from
+such a run.
+
+    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...] [--profile]
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import pstats
 import time
 
 import numpy as np
@@ -49,6 +58,28 @@ def _material(name: str, E: float, stabilisation: float, compaction_stress: floa
     return CPAModel(p, axes=plane_strain_axes(0.0), stabilisation=mu)
 
 
+#: Where a footing's time goes (``--profile``): each part is the cumulative time of these functions, named by
+#: (path suffix, function name); they do not call one another.
+PARTS = {
+    "material update": [("femgran/state.py", "evaluate")],
+    "linear solves": [("femgran/solver.py", "_solve_free")],
+    "assembly": [("femgran/assembly.py", "stiffness"), ("femgran/assembly.py", "internal_force"),
+                 ("femgran/assembly.py", "strain")],
+    "Newton log": [("femgran/diagnostics.py", "record"), ("femgran/diagnostics.py", "full_step_overshoot")],
+}
+
+
+def time_split(profile: cProfile.Profile, total: float) -> dict:
+    """The seconds of each of :data:`PARTS` in a profiled run, and the rest of ``total``."""
+    stats = pstats.Stats(profile).stats  # {(file, line, name): (calls, primitive calls, tottime, cumtime, callers)}
+    split = {}
+    for part, functions in PARTS.items():
+        split[part] = sum(entry[3] for (path, _line, name), entry in stats.items()
+                          if any(path.replace("\\", "/").endswith(suffix) and name == fn for suffix, fn in functions))
+    split["rest"] = total - sum(split.values())
+    return split
+
+
 SOILS = ("drucker-prager", "mohr-coulomb", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised",
          "cpa-thesis-wide-fade")
 
@@ -65,14 +96,20 @@ def main(argv=None) -> None:
                     help="p_c of cpa-thesis-wide-fade [kPa] (the law's default is 2)")
     ap.add_argument("--soils", nargs="+", default=list(SOILS), choices=SOILS)
     ap.add_argument("--surcharge", type=float, default=0.0, help="on the surface beside the footing [kPa]")
+    ap.add_argument("--profile", action="store_true", help="split each run's time by part (cProfile)")
     args = ap.parse_args(argv)
     footing(_material("cpa-thesis", args.E, 0.0), resolution=1, steps=2, settlement_m=0.002, plots=False)  # compile
     rows = {}
     for soil in args.soils:
+        profile = cProfile.Profile() if args.profile else None
         t0 = time.perf_counter()
+        if profile is not None:
+            profile.enable()
         sol = footing(_material(soil, args.E, args.stabilisation, args.compaction_stress), resolution=args.resolution,
                       steps=args.steps, surcharge_kPa=args.surcharge, plots=False)
         wall = time.perf_counter() - t0
+        if profile is not None:
+            profile.disable()
         h = sol.history
         its = h["iterations"][1:]
         log = sol.newton_log.summary()
@@ -84,6 +121,12 @@ def main(argv=None) -> None:
               f"{log['points_switched_total']} times over the run; full Newton steps {log['full_steps']}, "
               f"{log['full_steps_rejected']} rejected by the line search (half of their overshoot at a median of "
               f"{log['median_overshoot_points_rejected']:.0f} point(s): femgran.diagnostics.full_step_overshoot)")
+        if profile is not None:
+            split = time_split(profile, wall)
+            print(f"{'':<24} time by part (profiled): " + ", ".join(
+                f"{part} {t:.1f} s ({100 * t / wall:.0f} %)" for part, t in split.items()))
+            print(f"{'':<24} material update per evaluation {1e3 * split['material update'] / log['evaluations']:.1f} ms,"
+                  f" everything else {1e3 * (wall - split['material update']) / log['evaluations']:.1f} ms")
         if not sol.completed:
             print(f"{'':<24} {sol.stop_reason}")
     if "drucker-prager" in rows:
