@@ -26,7 +26,8 @@ to the cone is the product of two factors, the material evaluations and the cost
 which one a change should aim at. The profiler slows the Python parts: take the split, not the times, from
 such a run.
 
-    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...] [--profile]
+    python benchmarks/footing_speed.py [--E 6000] [--resolution 3] [--surcharge 0] [--soils cpa-isotropic ...]
+                                       [--profile]
 """
 
 from __future__ import annotations
@@ -125,8 +126,9 @@ def main(argv=None) -> None:
             split = time_split(profile, wall)
             print(f"{'':<24} time by part (profiled): " + ", ".join(
                 f"{part} {t:.1f} s ({100 * t / wall:.0f} %)" for part, t in split.items()))
-            print(f"{'':<24} material update per evaluation {1e3 * split['material update'] / log['evaluations']:.1f} ms,"
-                  f" everything else {1e3 * (wall - split['material update']) / log['evaluations']:.1f} ms")
+            per = 1e3 / log["evaluations"]
+            print(f"{'':<24} material update per evaluation {per * split['material update']:.1f} ms, "
+                  f"everything else {per * (wall - split['material update']):.1f} ms")
         if not sol.completed:
             print(f"{'':<24} {sol.stop_reason}")
     if "drucker-prager" in rows:
