@@ -60,5 +60,15 @@ def test_the_reduced_figure_set(tmp_path):
     assert cap[90.0] < 0.95 * cap[0.0]
     ratio = [r for k, r in zip(keys, runs["final_q_over_element"]) if k.startswith("triaxial")]
     assert all(r > 1.0 for r in ratio)  # rough platens confine the specimen's ends
-    bands = [(a, loc) for k, a, loc in zip(keys, runs["band_angle_deg"], runs["localised"]) if k.startswith("biaxial")]
-    assert all(45.0 < a < 75.0 and loc == 1 for a, loc in bands)  # the softening specimens localise
+    # the softening specimens localise: each in a band at 45-75 deg, on the finer two meshes in its main arm; on
+    # the coarsest (4 elements across) the main arm's peak, about three elements wide, exceeds half the section and the
+    # detector calls it a zone (femgran.band.is_zone), so there the band is the conjugate arm
+    biaxial = [i for i, k in enumerate(keys) if k.startswith("biaxial")]
+    assert len(biaxial) == 3
+
+    def band(i, prefix=""):
+        return runs[prefix + "localised"][i] == 1 and 45.0 < runs[prefix + "band_angle_deg"][i] < 75.0
+
+    coarsest = min(runs["resolution"][i] for i in biaxial)
+    assert all(band(i) or band(i, "conjugate_") for i in biaxial)
+    assert all(band(i) for i in biaxial if runs["resolution"][i] > coarsest)
