@@ -81,6 +81,23 @@ def time_split(profile: cProfile.Profile, total: float) -> dict:
     return split
 
 
+def timed_footing(material, profile: bool = False, **kwargs):
+    """``femgran.cases.footing(material, plots=False, **kwargs)`` timed: (solution, wall time [s], split), the
+    split of :func:`time_split` with ``profile`` (the run under ``cProfile``), else None."""
+    from femgran.cases import footing
+
+    profiler = cProfile.Profile() if profile else None
+    t0 = time.perf_counter()
+    if profiler is not None:
+        profiler.enable()
+    sol = footing(material, plots=False, **kwargs)
+    wall = time.perf_counter() - t0
+    if profiler is None:
+        return sol, wall, None
+    profiler.disable()
+    return sol, wall, time_split(profiler, wall)
+
+
 SOILS = ("drucker-prager", "mohr-coulomb", "cpa-isotropic", "cpa-thesis", "cpa-thesis-stabilised",
          "cpa-thesis-wide-fade")
 
@@ -102,15 +119,9 @@ def main(argv=None) -> None:
     footing(_material("cpa-thesis", args.E, 0.0), resolution=1, steps=2, settlement_m=0.002, plots=False)  # compile
     rows = {}
     for soil in args.soils:
-        profile = cProfile.Profile() if args.profile else None
-        t0 = time.perf_counter()
-        if profile is not None:
-            profile.enable()
-        sol = footing(_material(soil, args.E, args.stabilisation, args.compaction_stress), resolution=args.resolution,
-                      steps=args.steps, surcharge_kPa=args.surcharge, plots=False)
-        wall = time.perf_counter() - t0
-        if profile is not None:
-            profile.disable()
+        sol, wall, split = timed_footing(_material(soil, args.E, args.stabilisation, args.compaction_stress),
+                                         args.profile, resolution=args.resolution, steps=args.steps,
+                                         surcharge_kPa=args.surcharge)
         h = sol.history
         its = h["iterations"][1:]
         log = sol.newton_log.summary()
@@ -122,8 +133,7 @@ def main(argv=None) -> None:
               f"{log['points_switched_total']} times over the run; full Newton steps {log['full_steps']}, "
               f"{log['full_steps_rejected']} rejected by the line search (half of their overshoot at a median of "
               f"{log['median_overshoot_points_rejected']:.0f} point(s): femgran.diagnostics.full_step_overshoot)")
-        if profile is not None:
-            split = time_split(profile, wall)
+        if split is not None:
             print(f"{'':<24} time by part (profiled): " + ", ".join(
                 f"{part} {t:.1f} s ({100 * t / wall:.0f} %)" for part, t in split.items()))
             per = 1e3 / log["evaluations"]

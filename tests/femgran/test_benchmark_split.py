@@ -1,8 +1,6 @@
 """The time split of ``benchmarks/footing_speed.py --profile``: it must find the parts it names."""
 
-import cProfile
 import importlib.util
-import time
 from pathlib import Path
 
 import pytest
@@ -19,14 +17,8 @@ def footing_speed():
 
 
 def _split(footing_speed, soil):
-    from femgran.cases import footing
-
-    profile = cProfile.Profile()
-    t0 = time.perf_counter()
-    profile.enable()
-    footing(footing_speed._material(soil, 6000.0, 0.1), resolution=1, steps=2, settlement_m=0.004, plots=False)
-    profile.disable()
-    return footing_speed.time_split(profile, time.perf_counter() - t0)
+    material = footing_speed._material(soil, 6000.0, 0.1)
+    return footing_speed.timed_footing(material, True, resolution=1, steps=2, settlement_m=0.004)[2]
 
 
 def test_the_profiled_split_puts_the_cpa_footings_time_in_its_material_update(footing_speed):
