@@ -23,6 +23,24 @@ def test_every_subcommand_has_progress_on_by_default_and_no_progress(command):
         assert str(parser.parse_args(command + ["--out", "somewhere"]).out) == "somewhere"
 
 
+
+def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path, capsys, monkeypatch):
+    """A run whose stderr is a file (a batch job's log) gets no bar: tqdm's carriage-return updates made the
+    log of ``femgran footing --alpha 0`` one line of 20 kB. On a terminal the bar is drawn as before."""
+    import io
+
+    assert main(["biaxial", "--resolution", "2", "--steps", "3", "--out", str(tmp_path / "log")]) == 0
+    assert "%|" not in capsys.readouterr().err
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    monkeypatch.setattr("sys.stderr", screen)
+    assert main(["biaxial", "--resolution", "2", "--steps", "3", "--out", str(tmp_path / "screen")]) == 0
+    assert "%|" in screen.getvalue() and "t=1.000/1.000" in screen.getvalue()
+
 @pytest.mark.parametrize("command", [["element", "triaxial"], ["footing"], ["triaxial"], ["biaxial"]], ids=" ".join)
 def test_the_material_flags_are_the_same_everywhere(command):
     parser = build_parser()
