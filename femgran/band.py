@@ -102,12 +102,13 @@ class Band:
     most band-like feature of a diffuse field); ``profile``: (distance [m], mean intensity, fitted) across
     the band, for plots; ``angle_method``: ``"centre line"`` when the angle is that of the fitted centre
     line (module docstring, section 1), else it says why not: ``"line integral (...)"`` when the fit was
-    not taken -- a zone too broad for three full slices, or a fit turning more than :data:`REFINE_DEG`,
-    which follows another feature, or one leaving the orientations searched; or the largest line integral
-    on an end of those orientations -- and the angle is the 0.5 deg search's, with its pull toward long
-    strips; ``"none"`` for :meth:`none`. ``section_m``: the specimen's section across the band through its
-    centre; ``peak_width_m``: the fitted peak's full width at half maximum, kept when it is no band (a zone
-    wider than :data:`MAX_WIDTH_FRACTION` of the section, or a diffuse field)."""
+    not taken -- a zone too broad for three full slices, a fit that lost its full slices after a turn, or
+    one turning more than :data:`REFINE_DEG`, which follows another feature, or one leaving the orientations
+    searched; or the largest line integral on an end of those orientations -- and the angle is the 0.5 deg
+    search's, with its pull toward long strips; ``"none"`` for :meth:`none`. ``section_m``: the specimen's
+    section across the band through its centre; ``peak_width_m``: the fitted peak's full width at half
+    maximum, kept when it is no band (a zone wider than :data:`MAX_WIDTH_FRACTION` of the section, or a
+    diffuse field)."""
 
     angle_deg: float
     direction: tuple[float, float]
