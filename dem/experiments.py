@@ -197,7 +197,7 @@ def _drive(state: DEMState, segments: list, record_every: int, out, checkpoint_e
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=total, initial=done, desc=label, unit="step", smoothing=0.1, disable=None)
+        bar = tqdm(total=total, initial=done, desc=label, unit="step", smoothing=0.1)
     since_ckpt = 0
     if not resume:
         rec.record(sim, segments[0][3], _rate_norm(segments[0]))

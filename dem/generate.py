@@ -136,7 +136,7 @@ def generate(n_particles: int = 4000, psd="ottawa_c109", width_m: float | None =
     steps_iter = range(1, batches + 1)
     if progress:
         from tqdm import tqdm
-        steps_iter = tqdm(steps_iter, desc="radius expansion", unit="batch", disable=None)
+        steps_iter = tqdm(steps_iter, desc="radius expansion", unit="batch")
     for k in steps_iter:
         sim.set_radii(radii * (placement_factor + total * k / batches))
         sim.advance(max(1, n_steps // batches))

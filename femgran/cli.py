@@ -17,6 +17,8 @@ import argparse
 import importlib
 import sys
 
+from material.commandline import resolve_progress
+
 _REGISTRARS = ("material.cli", "femgran.cases.cli", "dem.cli", "femgran.figures", "femgran.sweep", "material.identify_cli")
 
 
@@ -39,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args._argv = list(sys.argv[1:] if argv is None else argv)  # for the run records (material.commandline)
+    resolve_progress(args)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the run wrote its checkpoint and said where

@@ -739,8 +739,7 @@ class NewtonSolver:
         if progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=float(t_end), unit="load", bar_format="{l_bar}{bar}| t={n:.3f}/{total:.3f} {postfix}",
-                       disable=None)  # (None: no bar where stderr is not a terminal, e.g. a batch job's log)
+            bar = tqdm(total=float(t_end), unit="load", bar_format="{l_bar}{bar}| t={n:.3f}/{total:.3f} {postfix}")
             bar.update(self.t)  # a resumed run starts where its checkpoint was
         if resume is None:
             row = self._row(0, 0, [0.0], 0, observers)

@@ -7,19 +7,20 @@ means the same thing everywhere (``material`` and ``dem`` do not import the FE p
   the package version (:func:`write_run_record`);
 * ``--preset``, ``--params FILE`` (``--parameters`` is the same flag) and ``--set KEY=VALUE`` (repeatable;
   a comma-separated VALUE is a list, e.g. ``--set a=0.4,0.45,19``) for the CPA parameters;
-* progress bars on by default, ``--no-progress`` to silence them (``--progress`` is accepted and
-  changes nothing).
+* a progress bar where stderr is a terminal, none where it is not (a batch job's log file or a pipe, into
+  which the bar's carriage-return updates wrote one line of 20 kB for ``femgran footing --alpha 0``);
+  ``--progress`` draws it there too, ``--no-progress`` nowhere (:func:`resolve_progress`). The Python API's
+  ``progress=True`` draws it wherever it is asked for (a notebook's stderr is no terminal).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
-__all__ = ["add_out", "add_progress", "add_parameters", "parse_set", "parameters_from_args", "with_changes",
-           "write_run_record"]
+__all__ = ["add_out", "add_progress", "resolve_progress", "add_parameters", "parse_set", "parameters_from_args",
+           "with_changes", "write_run_record"]
 
 
 def add_out(parser, default: str, help: str | None = None) -> None:
@@ -28,8 +29,17 @@ def add_out(parser, default: str, help: str | None = None) -> None:
 
 
 def add_progress(parser) -> None:
-    parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
-    parser.add_argument("--progress", dest="progress", action="store_true", default=True, help=argparse.SUPPRESS)
+    parser.add_argument("--no-progress", dest="progress", action="store_false", default=None, help="no progress bar")
+    parser.add_argument("--progress", dest="progress", action="store_true", default=None,
+                        help="a progress bar even where stderr is not a terminal (default: on a terminal only)")
+
+
+def resolve_progress(args, stream=None) -> None:
+    """``args.progress`` as the subcommands read it: the flag given, or without one (None) whether ``stream``
+    (default ``sys.stderr``) is a terminal."""
+    if getattr(args, "progress", False) is None:
+        stream = sys.stderr if stream is None else stream
+        args.progress = bool(getattr(stream, "isatty", lambda: False)())
 
 
 def add_parameters(parser, preset_default: str | None = "ottawa_c109") -> None:

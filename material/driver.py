@@ -526,7 +526,7 @@ def run_path(model, path: LoadPath, *, tolerance: float = 1e-10, max_iter: int =
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=path.n_steps, desc="element", unit="step", leave=False, disable=None)
+        bar = tqdm(total=path.n_steps, desc="element", unit="step", leave=False)
     step_no = 0
     log_fh = None
     if log is not None:

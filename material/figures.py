@@ -267,6 +267,6 @@ def make_figures(out_dir, names=None, full: bool = False, progress: bool = True)
     from tqdm import tqdm
 
     written: list[Path] = []
-    for name in tqdm(names, desc="figures", disable=None if progress else True):
+    for name in tqdm(names, desc="figures", disable=not progress):
         written += FIGURES[name](out, full)
     return written

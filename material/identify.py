@@ -1213,7 +1213,7 @@ def triaxial(curves, *, preset="ottawa_c109", free: Sequence[str] | str = ("A", 
         if progress:
             from tqdm import tqdm
 
-            problem.bar = tqdm(desc="identify: simulations", unit="run", leave=False, disable=None)
+            problem.bar = tqdm(desc="identify: simulations", unit="run", leave=False)
         problem.check_identifiable(z0)
         res = least_squares(problem, z0, jac=problem.jacobian, bounds=(problem.lo, problem.hi), method="trf",
                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-8, ftol=1e-10, gtol=1e-10)

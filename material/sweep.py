@@ -329,7 +329,7 @@ def sweep(runs: Iterable[Run], out, *, scheduler: str | None = None, workers: in
     _write_summary(out, runs, records, title, counts)
     from tqdm import tqdm
 
-    bar = tqdm(total=len(runs), initial=skipped, desc=title, unit="run", disable=None if progress else True)
+    bar = tqdm(total=len(runs), initial=skipped, desc=title, unit="run", disable=not progress)
     n_workers = workers or max(1, min(_n_cores(), len(todo)))
     serial = scheduler == "serial" or (scheduler is None and (n_workers == 1 or len(todo) <= 1))
     dashboard = None

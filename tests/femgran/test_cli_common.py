@@ -15,22 +15,27 @@ COMMANDS = [["element", "triaxial"], ["element", "path", "x.csv"], ["triaxial"],
 
 
 @pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
-def test_every_subcommand_has_progress_on_by_default_and_no_progress(command):
+def test_every_subcommand_has_progress_on_a_terminal_by_default_and_both_flags(command):
     parser = build_parser()
-    assert parser.parse_args(command).progress is True
+    assert parser.parse_args(command).progress is None  # (resolved by main: on a terminal only)
     assert parser.parse_args(command + ["--no-progress"]).progress is False
+    assert parser.parse_args(command + ["--progress"]).progress is True
     if command[0] != "run":
         assert str(parser.parse_args(command + ["--out", "somewhere"]).out) == "somewhere"
 
 
 
-def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path, capsys, monkeypatch):
-    """A run whose stderr is a file (a batch job's log) gets no bar: tqdm's carriage-return updates made the
-    log of ``femgran footing --alpha 0`` one line of 20 kB. On a terminal the bar is drawn as before."""
+def test_the_progress_bar_is_drawn_on_a_terminal_unless_asked_for(tmp_path, capsys, monkeypatch):
+    """Where stderr is a file or a pipe (a batch job's log) the command line draws no bar unless --progress
+    asks for it: the bar's carriage-return updates made the log of ``femgran footing --alpha 0`` one line of
+    20 kB. On a terminal it is drawn, and --no-progress silences it there."""
     import io
 
-    assert main(["biaxial", "--resolution", "2", "--steps", "3", "--out", str(tmp_path / "log")]) == 0
+    run = ["biaxial", "--resolution", "2", "--steps", "3", "--out"]
+    assert main(run + [str(tmp_path / "log")]) == 0
     assert "%|" not in capsys.readouterr().err
+    assert main(run + [str(tmp_path / "asked"), "--progress"]) == 0
+    assert "t=1.000/1.000" in capsys.readouterr().err
 
     class Terminal(io.StringIO):
         def isatty(self):
@@ -38,8 +43,12 @@ def test_the_progress_bar_is_drawn_on_a_terminal_only(tmp_path, capsys, monkeypa
 
     screen = Terminal()
     monkeypatch.setattr("sys.stderr", screen)
-    assert main(["biaxial", "--resolution", "2", "--steps", "3", "--out", str(tmp_path / "screen")]) == 0
+    assert main(run + [str(tmp_path / "screen")]) == 0
     assert "%|" in screen.getvalue() and "t=1.000/1.000" in screen.getvalue()
+    quiet = Terminal()
+    monkeypatch.setattr("sys.stderr", quiet)
+    assert main(run + [str(tmp_path / "quiet"), "--no-progress"]) == 0
+    assert "%|" not in quiet.getvalue()
 
 @pytest.mark.parametrize("command", [["element", "triaxial"], ["footing"], ["triaxial"], ["biaxial"]], ids=" ".join)
 def test_the_material_flags_are_the_same_everywhere(command):
