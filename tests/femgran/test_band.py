@@ -58,7 +58,6 @@ def test_the_band_says_whether_its_angle_is_its_fitted_centre_line():
     assert 2.0 * arc.angle_deg == pytest.approx(round(2.0 * arc.angle_deg), abs=1e-9)  # on the search's grid
 
 
-
 def test_a_centre_line_fit_that_does_not_finish_leaves_the_line_integral_angle(tmp_path):
     """The reduced figure set's alpha = 90 deg biaxial run (6 elements across): a diffuse X with no straight
     centre line at this resolution. Its fit from the largest line integral (52 deg) turned -9.1 deg and then
@@ -73,6 +72,7 @@ def test_a_centre_line_fit_that_does_not_finish_leaves_the_line_integral_angle(t
     assert s["band_angle_method"].startswith("line integral (the centre line lost its full slices")
     assert 2.0 * s["band_angle_deg"] == pytest.approx(round(2.0 * s["band_angle_deg"]), abs=1e-9)  # on the grid
     assert 50.0 <= s["band_angle_deg"] <= 54.0  # measured: 52.0
+
 
 def test_the_contrast_is_the_rise_over_the_background_under_the_band():
     """A band off the centroid on a sloped background: the background under the band, not at the

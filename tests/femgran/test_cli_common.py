@@ -24,7 +24,6 @@ def test_every_subcommand_has_progress_on_a_terminal_by_default_and_both_flags(c
         assert str(parser.parse_args(command + ["--out", "somewhere"]).out) == "somewhere"
 
 
-
 def test_the_progress_bar_is_drawn_on_a_terminal_unless_asked_for(tmp_path, capsys, monkeypatch):
     """Where stderr is a file or a pipe (a batch job's log) the command line draws no bar unless --progress
     asks for it: the bar's carriage-return updates made the log of ``femgran footing --alpha 0`` one line of
@@ -49,6 +48,7 @@ def test_the_progress_bar_is_drawn_on_a_terminal_unless_asked_for(tmp_path, caps
     monkeypatch.setattr("sys.stderr", quiet)
     assert main(run + [str(tmp_path / "quiet"), "--no-progress"]) == 0
     assert "%|" not in quiet.getvalue()
+
 
 @pytest.mark.parametrize("command", [["element", "triaxial"], ["footing"], ["triaxial"], ["biaxial"]], ids=" ".join)
 def test_the_material_flags_are_the_same_everywhere(command):
