@@ -303,7 +303,8 @@ def sweep(runs: Iterable[Run], out, *, scheduler: str | None = None, workers: in
     workers : int, optional
         Worker processes of the LocalCluster, >= 1.
     progress : bool
-        A progress bar over the runs (and the dashboard address printed).
+        A progress bar over the runs. The Dask cluster's address and dashboard are printed either way (a
+        batch job's log, where the command line draws no bar, needs the dashboard's address too).
     on_record : callable, optional
         Called with each record as its run finishes (in this process), e.g. to print it.
     """
@@ -343,7 +344,9 @@ def sweep(runs: Iterable[Run], out, *, scheduler: str | None = None, workers: in
 
     def say(text):
         if progress:
-            bar.write(text)
+            bar.write(text)  # (above the bar)
+        else:
+            print(text)
 
     try:
         if serial:

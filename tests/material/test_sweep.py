@@ -118,12 +118,15 @@ def test_an_unknown_target_is_a_failed_run_not_a_crash(tmp_path):
     assert "element test = 'nope': allowed" in result["y"]["message"]
 
 
-def test_a_study_runs_on_an_existing_dask_cluster(tmp_path, monkeypatch):
-    """``scheduler=ADDRESS``: the runs go to a cluster started elsewhere (here, in this test)."""
+def test_a_study_runs_on_an_existing_dask_cluster(tmp_path, monkeypatch, capsys):
+    """``scheduler=ADDRESS``: the runs go to a cluster started elsewhere (here, in this test). Where they go is
+    printed without a progress bar too (a batch job's log)."""
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         result = sweep(_element_runs(steps=10)[:2], tmp_path, scheduler=cluster.scheduler_address, progress=False)
+        assert f"2 run(s) to do (0 already complete) on 1 worker(s) at {cluster.scheduler_address}" in \
+            capsys.readouterr().out
     assert result.ran == 2 and result.completed
     monkeypatch.setattr("material.sweep.CONNECT_TIMEOUT_S", 2)
     with pytest.raises(ValueError, match="no Dask scheduler answers there"):
