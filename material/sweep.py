@@ -342,18 +342,12 @@ def sweep(runs: Iterable[Run], out, *, scheduler: str | None = None, workers: in
         if on_record is not None:
             on_record(rec)
 
-    def say(text):
-        if progress:
-            bar.write(text)  # (above the bar)
-        else:
-            print(text)
-
     try:
         if serial:
             for run in todo:
                 finished(execute(run, out / run.key))
-        elif todo:
-            dashboard = _on_dask(todo, out, scheduler, n_workers, title, skipped, finished, say)
+        elif todo:  # (tqdm.write prints above the bar, and without one: it is the class's, not the bar's)
+            dashboard = _on_dask(todo, out, scheduler, n_workers, title, skipped, finished, bar.write)
     except KeyboardInterrupt:
         done = sum(r.key in records for r in runs)
         raise KeyboardInterrupt(f"{title}: interrupted with {done} of {len(runs)} runs complete in {out}; the same "
