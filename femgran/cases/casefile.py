@@ -121,6 +121,9 @@ def load_case(path):
     fields = _table(doc, "case", where)
     name = fields.pop("name", None)
     types = case_types()
+    if name is None:
+        others = f" (it has {sorted(fields)})" if fields else ""
+        raise ValueError(f"{where}: [case] needs a name{others}; allowed {sorted(types)}")
     if name not in types:
         raise ValueError(f"{where}: [case] name = {name!r}; allowed {sorted(types)}")
     cls = types[name]

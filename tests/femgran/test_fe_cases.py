@@ -408,6 +408,8 @@ plots = false
         load_case(_write(tmp_path / "b2.toml", '[case]\nname = "footing"\n[colour]\nred = 1\n'))
     with pytest.raises(ValueError, match="name = 'dam'"):
         load_case(_write(tmp_path / "b3.toml", '[case]\nname = "dam"\n'))
+    with pytest.raises(ValueError, match=r"\[case\] needs a name \(it has \['kind'\]\); allowed \['biaxial'"):
+        load_case(_write(tmp_path / "b3.toml", '[case]\nkind = "footing"\n'))
     with pytest.raises(ValueError, match="law = 'tresca'"):
         load_case(_write(tmp_path / "b4.toml", '[case]\nname = "footing"\n[material]\nlaw = "tresca"\n'))
     with pytest.raises(ValueError, match="unknown key.*'phi'"):
