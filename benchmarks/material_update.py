@@ -5,19 +5,44 @@ p0 = 100 kPa, spread over the points so that mobilisation varies from ~0.2 to ~0
 strain increment is integrated: with the consistent tangent on 1 and 2 threads, and without the
 tangent. Baseline in the same process: the linear-elastic update of material.LinearElastic.
 
+The last lines put the update against this core's arithmetic: the floating-point operations of one update,
+counted from the source of ``material._cpa_local.evaluate`` (:data:`FLOPS_PER_PLANE`) times the evaluations
+of the residual and Jacobian it needs (at least its local Newton iterations + 1), over the rate at which
+the same core multiplies two 1024 x 1024 matrices (numpy's BLAS on one thread: about the most a core
+does). So a reader sees what share of the core the kernel uses and what share the target of 300,000
+updates/s would need.
+
     python benchmarks/material_update.py [--points 100000] [--repeat 3] [--rule bazant-oh-33] [--stabilisation MU]
 """
 
 from __future__ import annotations
 
-import argparse
-import timeit
+import os
 
-import numba
-import numpy as np
+# one BLAS thread for the matrix product that measures the core (read when numpy loads its BLAS; the CPA
+# kernel itself calls no BLAS)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import timeit  # noqa: E402
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
 
 from material import CPAModel, LinearElastic, load_preset
-from material.anisotropy import axes_from_alpha
+from material.anisotropy import axes_from_alpha  # noqa: E402
+
+#: Floating-point operations per plane of one evaluation of ``material._cpa_local.evaluate`` with the
+#: Jacobian (a loading plane on its hardening branch; a square root or a division counted as one, although
+#: each takes the core several times an addition's slot, so the count is low rather than high), by pass:
+FLOPS_PER_PLANE = {
+    "stress measures: traction, sigma_n, shear traction, tau, T, 1/sigma~, 1/T, compaction weight, s": 58,
+    "directions: r = n x s, sym(s (x) n), sym(r (x) n), flow vector m and b (6 components each)": 75,
+    "plane law: hardening, Fischer-Burmeister and its derivatives, slip linearisation, 7 coefficients": 68,
+    "sums: the strain residual (6 rows x 2 sums)": 24,
+    "sums: the Jacobian (6 rows x (u, v, z and 6 entries of 3 products))": 258,
+}
 
 
 def _hardening_state(model, n, rng):
@@ -83,6 +108,20 @@ def main(argv=None) -> None:
           f"time of {model.options.stabilisation!r}")
     print(f"target >= 300,000 updates/s per core with tangent: {n / t1:,.0f} on 1 thread "
           f"({'met' if n / t1 >= 3e5 else 'NOT met'})")
+    _arithmetic(model.n_planes, its.mean(), n / t1, args.repeat)
+
+
+def _arithmetic(planes: int, iterations: float, rate: float, repeat: int) -> None:
+    """Print the update's floating-point operations against this core's matrix-product rate."""
+    a = np.random.default_rng(1).random((1024, 1024))
+    peak = 2.0 * 1024**3 / _best(lambda: a @ a, repeat)
+    per_update = planes * sum(FLOPS_PER_PLANE.values()) * (iterations + 1.0)
+    print(f"arithmetic: >= {per_update:,.0f} flops per update ({planes} planes x {sum(FLOPS_PER_PLANE.values())} "
+          f"x {iterations + 1.0:.2f} evaluations, counted from the source); this core's 1024^2 matrix product "
+          f"on one thread: {peak / 1e9:.1f} GFLOP/s")
+    print(f"  the update uses {rate * per_update / 1e9:.2f} GFLOP/s ({rate * per_update / peak:.0%} of it); "
+          f"300,000 updates/s would need {3e5 * per_update / 1e9:.1f} GFLOP/s ({3e5 * per_update / peak:.0%}); "
+          f"at the full rate {peak / per_update:,.0f} updates/s")
 
 
 if __name__ == "__main__":
