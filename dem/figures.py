@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .sweep import read_csv, write_csv
+from material.table import Table, read_table
 
 
 def _plt():
@@ -26,12 +26,12 @@ def _plt():
 
 def _load(out: Path, test: str):
     f = out / test
-    d = {"biaxial": read_csv(f / "biaxial" / "history.csv"), "rotation": read_csv(f / "rotation" / "history.csv")}
+    d = {"biaxial": read_table(f / "biaxial" / "history.csv"), "rotation": read_table(f / "rotation" / "history.csv")}
     for stage in ("biaxial", "rotation"):
         for m in ("mil", "areal_porosity"):
             p = f / stage / f"fabric_{m}.csv"
             if p.is_file():
-                d[f"{stage}_{m}"] = read_csv(p)
+                d[f"{stage}_{m}"] = read_table(p)
     return d
 
 
@@ -206,10 +206,11 @@ def sweep_figures(out, tests, figdir=None) -> list[Path]:
     try:
         written.append(glyph_figure(f, figdir / "fig42_glyphs.png"))
         keep = ("alpha_eps_deg", "delta_deg", "omega_xx", "omega_xy")
-        written.append(Path(write_csv(figdir / "fig42_glyphs.csv", {k: f[k] for k in keep},
-                                      {"omega_xx": "fabric tensor Omega, xx component (Omega_yy = -Omega_xx)",
-                                       "omega_xy": "fabric tensor Omega, xy component"},
-                                      title="Fig. 42: the fabric tensor drawn as glyphs (MIL) during the rotation")))
+        written.append(Table({k: f[k] for k in keep},
+                             {"omega_xx": "fabric tensor Omega, xx component (Omega_yy = -Omega_xx)",
+                              "omega_xy": "fabric tensor Omega, xy component"},
+                             title="Fig. 42: the fabric tensor drawn as glyphs (MIL) during the rotation")
+                       .write_csv(figdir / "fig42_glyphs.csv"))
     except Exception as exc:  # pyvista needs an off-screen renderer; the rest of the set is still useful
         (figdir / "fig42_glyphs.txt").write_text(f"glyph figure not rendered: {exc}\n")
     return written

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from material.table import Table, read_table
+from material.table import Table
 
 from .contacts import ContactLaw
 
@@ -87,11 +87,6 @@ def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain:
 def write_csv(path, columns: dict, descriptions: dict | None = None, title: str = "DEM table") -> Path:
     """Columns as a :class:`material.table.Table` CSV (commented header)."""
     return Table(columns, descriptions, title=title).write_csv(path)
-
-
-def read_csv(path) -> Table:
-    """A table written by :func:`write_csv` or a run's ``history.csv``."""
-    return read_table(path)
 
 
 def sweep(out, tests=None, full: bool = False, scale: float = 0.1, seed: int = 1, workers: int | None = None,
