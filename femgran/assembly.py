@@ -23,7 +23,7 @@ from numba import njit, prange
 
 import skfem
 
-__all__ = ["Discretisation", "discretisation_for", "element_for", "element_stiffness_reference"]
+__all__ = ["Discretisation", "element_for", "element_stiffness_reference"]
 
 # element and quadrature order per (mesh type, polynomial order): full Gauss for Q1/Q2/H1/H2,
 # exact stiffness on straight simplices
@@ -372,21 +372,3 @@ class Discretisation:
             out[: self.n_displacement_dofs][c::self.dim] += form.assemble(self.basis)
         return out
 
-
-def discretisation_for(material, mesh, order: int = 1, volumetric: str = "standard") -> Discretisation:
-    """The discretisation ``material`` needs on ``mesh``: the displacement alone, or, for a gradient-enhanced
-    law (one with a ``nonlocal_length``, :mod:`material.base`), the displacement and the nodal nonlocal field
-    (:class:`femgran.gradient.GradientDiscretisation`, its equation scaled by the law's Young's modulus E), or
-    for a law with a gradient back stress (a ``back_stress_length``) the displacement and the nonlocal plastic
-    strain tensor (:class:`femgran.gradient.BackStressDiscretisation`, scaled the same way)."""
-    back = getattr(material, "back_stress_length", None)
-    if back is not None:
-        from femgran.gradient import BackStressDiscretisation
-
-        return BackStressDiscretisation(mesh, order, volumetric, length=back, scale=float(material.E))
-    length = getattr(material, "nonlocal_length", None)
-    if length is None:
-        return Discretisation(mesh, order, volumetric)
-    from femgran.gradient import GradientDiscretisation
-
-    return GradientDiscretisation(mesh, order, volumetric, length=length, scale=float(material.E))

@@ -44,7 +44,8 @@ from material.base import BackStressTangent, CoupledTangent
 from material.tensors import from_mandel, to_mandel
 
 __all__ = ["ALL_COMPONENTS", "PLANE_COMPONENTS", "PLANE_TOLERANCE", "BackStressDiscretisation",
-           "GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "one_dimensional_band"]
+           "GradientDiscretisation", "NONLOCAL_ELEMENTS", "OneDimensionalBand", "discretisation_for",
+           "one_dimensional_band"]
 
 #: The linear Lagrange element of ebar on each mesh type.
 NONLOCAL_ELEMENTS = {"MeshHex1": "ElementHex1", "MeshTet1": "ElementTetP1", "MeshQuad1": "ElementQuad1",
@@ -414,3 +415,18 @@ class BackStressDiscretisation(Discretisation):
                                    np.tile(ne, (1, nn_e)).ravel()])
             self._coupling = (rows, cols)
         return self._coupling
+
+
+def discretisation_for(material, mesh, order: int = 1, volumetric: str = "standard") -> Discretisation:
+    """The discretisation ``material`` needs on ``mesh``: the displacement alone, or, for a gradient-enhanced
+    law (one with a ``nonlocal_length``, :mod:`material.base`), the displacement and the nodal nonlocal field
+    (:class:`GradientDiscretisation`, its equation scaled by the law's Young's modulus E), or
+    for a law with a gradient back stress (a ``back_stress_length``) the displacement and the nonlocal plastic
+    strain tensor (:class:`BackStressDiscretisation`, scaled the same way)."""
+    back = getattr(material, "back_stress_length", None)
+    if back is not None:
+        return BackStressDiscretisation(mesh, order, volumetric, length=back, scale=float(material.E))
+    length = getattr(material, "nonlocal_length", None)
+    if length is None:
+        return Discretisation(mesh, order, volumetric)
+    return GradientDiscretisation(mesh, order, volumetric, length=length, scale=float(material.E))

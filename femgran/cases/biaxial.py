@@ -130,7 +130,7 @@ class Biaxial(Drainage):
             raise ValueError(f"weak_zone_size = {self.weak_zone_size!r}: allowed 0 < weak_zone_size <= 1")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import discretisation_for
+        from femgran.gradient import discretisation_for
         from femgran.mesh import name_box_boundaries, rectangle
 
         p0, W, ea, imp, n = float(self.p0_kPa), float(self.width_m), float(self.axial_strain), \

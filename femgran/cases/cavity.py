@@ -72,7 +72,7 @@ class Cavity(Drainage):
             raise ValueError(f"order = {self.order!r}: allowed 1 or 2")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import discretisation_for
+        from femgran.gradient import discretisation_for
         from femgran.mesh import graded, rectangle
 
         a, b, p0 = float(self.inner_radius_m), float(self.outer_radius_m), float(self.p0_kPa)

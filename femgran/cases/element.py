@@ -57,7 +57,7 @@ class Element(Drainage):
         check_steps(self.steps)
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import discretisation_for
+        from femgran.gradient import discretisation_for
         from femgran.mesh import box
 
         p0, ea = float(self.p0_kPa), float(self.axial_strain)

@@ -120,7 +120,7 @@ class Footing(Drainage):
             raise ValueError(f"resolution = {self.resolution!r}: must be >= 1")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import discretisation_for
+        from femgran.gradient import discretisation_for
         from femgran.mesh import load_mesh
 
         B, gamma, qs, K0 = float(self.width_m), float(self.unit_weight), float(self.surcharge_kPa), float(self.K0)

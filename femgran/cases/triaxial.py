@@ -101,7 +101,7 @@ class Triaxial(Drainage):
                                  f"{HEIGHT / (2 * max(n, 1))} m")
 
     def build(self, mat) -> Problem:
-        from femgran.assembly import discretisation_for
+        from femgran.gradient import discretisation_for
         from femgran.mesh import box, load_mesh
 
         p0, ea, n = float(self.p0_kPa), float(self.axial_strain), int(self.resolution)

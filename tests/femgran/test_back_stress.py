@@ -5,7 +5,7 @@ law, and the field in the output and the checkpoints."""
 import numpy as np
 import pytest
 
-from femgran.assembly import discretisation_for
+from femgran.gradient import discretisation_for
 from femgran.cases import Biaxial, Output, run
 from femgran.cases.base import build_problem
 from femgran.gradient import BackStressDiscretisation

@@ -548,7 +548,7 @@ def test_weak_zone_is_the_same_region_on_every_mesh_whose_edges_follow_it():
     """The shear-band study's zone (W/6 wide, W/3 high at the bottom-left corner) covers exactly W^2/18 on
     every mesh with a multiple of 6 elements across, and approximately on others; a zone that holds no
     quadrature point, or a size outside (0, 1], is refused naming the key."""
-    from femgran.assembly import discretisation_for
+    from femgran.gradient import discretisation_for
     from femgran.cases.biaxial import Biaxial, _with_weak_zone
     from femgran.mesh import rectangle
 

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from femgran.assembly import Discretisation, discretisation_for
+from femgran.assembly import Discretisation
+from femgran.gradient import discretisation_for
 from femgran.gradient import GradientDiscretisation, one_dimensional_band
 from femgran.mesh import name_box_boundaries, rectangle
 from femgran.solver import Dirichlet, NewtonSolver, PathControl
