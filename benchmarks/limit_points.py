@@ -2,7 +2,7 @@
 
 The points are the two stored in the tests: the fold point of the alpha = 0 footing (the thesis's law,
 one limit point per step along its line) and the near-failure point (8 limit points in one step). The
-kernel (`material._cpa_local.update_past_limits`, numba, warm-started bisection) is timed against
+kernel (`material._cpa_point.update_past_limits`, numba, warm-started bisection) is timed against
 `material.cpa_reference.follow_past_limits` (the first version: a Python loop over the points' arrays,
 bisecting the whole fraction with solves from the start of the rest), both without the tangent, and the
 kernel with its forward-difference tangent (whose continuations skip the solves that failed far

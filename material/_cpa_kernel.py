@@ -1,9 +1,11 @@
 """Batch kernels of the CPA law: the update of N Gauss points in parallel, strengths, Mandel conversions.
 
 Pure functions over arrays: :mod:`material.cpa` validates the input, prepares the constants
-(:class:`material._cpa_local.Law`) and calls :func:`cpa_batch`. The law is in three parts:
+(:class:`material._cpa_local.Law`) and calls :func:`cpa_batch`. The law is in five parts:
 :mod:`material._cpa_plane` (one plane: strength, hardening, kinematics), :mod:`material._cpa_local` (the
-local problem of one point, its solver and the consistent tangent) and this module (the loop over points).
+local problem of one point and its semismooth Newton solver), :mod:`material._cpa_rate` (the rate problem at
+the start of a step), :mod:`material._cpa_point` (the update of one point: the branch from the start of the
+step, the consistent tangent, the continuation past limit points) and this module (the loop over points).
 """
 
 from __future__ import annotations
@@ -11,19 +13,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from material._cpa_local import (
-    Point,
-    _rate_coupling,
-    _ratios,
-    _uniqueness_floor,
-    floor_units,
-    inverse_shifted_normal_stress,
-    make_path,
-    make_workspace,
-    plane_data,
-    update_past_limits,
-)
+from material._cpa_local import Point, _ratios, inverse_shifted_normal_stress, make_workspace, plane_data
 from material._cpa_plane import ISQ2, NO_REFCOUNT, SQ2, induced_tensor, plane_strengths
+from material._cpa_point import make_path, update_past_limits
+from material._cpa_rate import _rate_coupling, _uniqueness_floor, floor_units
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -39,12 +32,12 @@ def cpa_batch(law, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift
     shift each plane has accumulated.
     Outputs: sig_out (N, 6), kap_out (N, M), D_out (N, 6, 6) (untouched without ``opt.tangent``),
     loading (N, M) bool, grad_out (N, 14) the gradient's S and derivatives
-    (:func:`material._cpa_local.point_update`), status (N,) int8, iterations and halvings (N,) int32,
+    (:func:`material._cpa_point.point_update`), status (N,) int8, iterations and halvings (N,) int32,
     reached (N,) the fraction of the increment a failed point reached (1 otherwise), opening (N,) plastic
     volumetric opening of the cut-off, mobilised (N,) the largest etah_a / eta_f,a, floor_mu (N,) the mu of the
     step stabilisation's floor at each point, overstress (N,) the stabilisation's overstress (the largest part
     h_a dkappa_a / etah_a of a loading plane's mobilised ratio that the floor carries), limits (N,) int32 the
-    limit points each point's step passed (:func:`material._cpa_local.update_past_limits`).
+    limit points each point's step passed (:func:`material._cpa_point.update_past_limits`).
     """
     N = sig_n.shape[0]
     M = kap_n.shape[1]
@@ -84,7 +77,7 @@ def _update_points(law, pd, opt, lim, sig_n, de, eps_n, kap_n, soft, c0, m_over,
 @njit(cache=True, error_model="numpy")
 def uniqueness_floors(law, sig_n, eps_n, kap_n, soft, out):
     """The least mu of the step stabilisation for which the rate problem of each of N committed states is
-    uniquely solvable by the sufficient condition of :func:`material._cpa_local._uniqueness_floor` (0 where
+    uniquely solvable by the sufficient condition of :func:`material._cpa_rate._uniqueness_floor` (0 where
     the thesis's law is), into ``out`` (N,). sig_n, eps_n (N, 6) Mandel, kap_n (N, M), soft (N,).
     (The implicit gradient's shifts are left out: the planes past their peak take their local level.)
     Serial: a diagnostic, and the same loop under ``parallel=True`` returned 0.0825 instead of 0.0822 at the
@@ -121,7 +114,7 @@ STRENGTHENINGS = ("none", "plane", "sum", "plastic_strain", "back_stress")
 def loading_tangents(law, sig_n, eps_n, kap_n, soft, nl_shift, m_over, kind, modulus, out):
     """The rate-independent loading tangent of each of N committed states, into ``out`` (N, 6, 6) Mandel.
 
-    Every plane at or above its curve at sigma_n loads (:func:`material._cpa_local._rate_coupling`: its
+    Every plane at or above its curve at sigma_n loads (:func:`material._cpa_rate._rate_coupling`: its
     eta' at the committed slip, the step stabilisation left out), at the rates x that solve H x = q,
     q_a = b_a . C d_eps; the stress rate is C d_eps - sum_b (w_b / t) C m_b x_b. With the implicit gradient
     (``m_over`` > 0) the planes past their peak take the gradient's shifted level ``nl_shift`` and, ebar

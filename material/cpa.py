@@ -2,8 +2,9 @@
 
 Theory: thesis sections 2.3 and 3.5, with the package's corrections and decisions written down in
 ``docs/cpa_law.md``. The numba kernels are :mod:`material._cpa_plane` (one plane),
-:mod:`material._cpa_local` (the local problem of one point and its solver) and
-:mod:`material._cpa_kernel` (the loop over points); this module validates input, prepares the plane data
+:mod:`material._cpa_local` (the local problem of one point and its solver), :mod:`material._cpa_rate`
+(the rate problem at the start of a step), :mod:`material._cpa_point` (the update of one point and its
+tangent) and :mod:`material._cpa_kernel` (the loop over points); this module validates input, prepares the plane data
 in the global frame, and owns the state layout and the failure replay files.
 
 The update in brief
@@ -14,7 +15,7 @@ slip grows only while its mobilised ratio sits on its hardening curve) and for t
 is the solution of these equations, a deterministic function of (d_strain, stress, state), found by a
 semismooth Newton method from the start of the step with a line search on a merit function, with
 continuation in the fraction of the increment as the one outer loop; the consistent tangent is the
-derivative of that solution (:mod:`material._cpa_local`).
+derivative of that solution (:mod:`material._cpa_point`).
 
 Where the branch followed from the start ends before the end of the increment (a limit point of the
 strain-driven response: the non-associated planes of a point near failure can lose the uniqueness of

@@ -489,9 +489,9 @@ _SEARCH_HALVINGS = 4
 
 
 def follow_past_limits(model, d_strain, stress, state):
-    """The continuation past limit points (``material._cpa_local``, "Past a limit point") as a plain loop
+    """The continuation past limit points (``material._cpa_point``, "Past a limit point") as a plain loop
     over arrays of points, built on the kernel's one-step update (``model._integrate(..., limits=False)``):
-    the reference of :func:`material._cpa_local.update_past_limits`, which does the same per point in numba.
+    the reference of :func:`material._cpa_point.update_past_limits`, which does the same per point in numba.
     Returns (stress (N, 3, 3), state, ok (N,) bool); no tangent. It locates each limit point otherwise than
     the kernel: by ``model.LIMIT_BISECTIONS`` halvings of the whole fraction [0, 1] of the rest of the
     increment, each trial a one-step solve from the start of the rest (with at most ``_SEARCH_HALVINGS``

@@ -349,7 +349,7 @@ def test_the_kernel_passes_limit_points_as_the_plain_loop_of_the_reference_does(
 
 def test_the_tangent_past_a_limit_point_is_the_forward_difference_of_the_update_itself():
     """The tangent past a limit point is the forward difference of the continuation, and its continuations
-    skip the solves that failed far beyond the limit in the step's own (material._cpa_local._fails_again). The
+    skip the solves that failed far beyond the limit in the step's own (material._cpa_point._fails_again). The
     skipping must not change the function: each column equals the difference of two updates without the
     tangent, which skip nothing, to round-off (the fold point at four places along its line, whose limit
     moves by up to 3.5 % of the increment under the perturbation, and the near-failure point with 8 limit
@@ -385,6 +385,7 @@ def test_the_tangent_past_a_limit_point_is_the_forward_difference_of_the_update_
 def _kernel_rate_choice(model, d, state, r_scale):
     """The kernel's rate problem of the stored point: (select (M + 1,), found), select[M] the cut-off's."""
     from material import _cpa_local as L
+    from material._cpa_rate import _rate_active_set
     from material._cpa_kernel import to_mandel
     from material._cpa_plane import induced_tensor, plane_strengths
 
@@ -398,7 +399,7 @@ def _kernel_rate_choice(model, d, state, r_scale):
     plane_strengths(law.nn6, law.omega6, lam6, law.coeffs, law.eta0, ws.eta_f, ws.deta_f)
     pt = L.Point(sig_n, de, kap_n, 0.0, ws.eta_f, law.cohesion / ws.eta_f + law.apex_stress, kap_n > law.A,
                  ws.select, ws.floor, r_scale, ws.post, False, 0.0, 0.0, np.zeros(M))
-    found = L._rate_active_set(law, pt, ws)
+    found = _rate_active_set(law, pt, ws)
     return ws.select.copy(), found
 
 
