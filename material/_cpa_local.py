@@ -740,6 +740,15 @@ def _active_set_phase(law, pd, opt, pt, sig, dk, dl, S, merit0, floor, ws):
     return False, steps, dl0, s0
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def take_iterate(sig_from, dk_from, sig_to, dk_to):
+    """Copy an iterate's stress (6,) and slip increments (M,) into another's."""
+    for i in range(6):
+        sig_to[i] = sig_from[i]
+    for a in range(dk_to.shape[0]):
+        dk_to[a] = dk_from[a]
+
+
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def _newton(law, pd, opt, pt, sig, dk, dl_in, S_in, ws):
     """Semismooth Newton with a backtracking line search on the merit function, from (sig, dk, dl_in, S_in).
@@ -806,10 +815,7 @@ def _newton(law, pd, opt, pt, sig, dk, dl_in, S_in, ws):
         if not accepted:
             return False, it + extra, dl, S
         cuts = cuts + 1 if alpha < 1.0 else 0
-        for i in range(6):
-            sig[i] = sig_try[i]
-        for a in range(M):
-            dk[a] = dk_try[a]
+        take_iterate(sig_try, dk_try, sig, dk)
         dl = dl_try
         S = s_try
         merit, rmax, phimax, phi0 = merit2, rmax2, phimax2, phi02

@@ -85,6 +85,7 @@ from material._cpa_local import (
     _ratios,
     evaluate,
     inverse_shifted_normal_stress,
+    take_iterate,
 )
 from material._cpa_plane import (
     ISQ2, NO_REFCOUNT, REFCOUNT, compaction_weight, induced_slope, induced_tensor, plane_strengths,
@@ -314,10 +315,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
         _tried(lam, converged, path)
         if converged:
             lam_done = lam
-            for i in range(6):
-                sig_done[i] = sig[i]
-            for a in range(M):
-                dk_done[a] = dk[a]
+            take_iterate(sig, dk, sig_done, dk_done)
             dl_done = dl
             s_done = S
             h = min(2.0 * h, 1.0)
@@ -347,10 +345,7 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
                         hi = mid
                         continue
                     lo = mid
-                    for i in range(6):
-                        sig_done[i] = sig[i]
-                    for a in range(M):
-                        dk_done[a] = dk[a]
+                    take_iterate(sig, dk, sig_done, dk_done)
                     dl_done = dl
                     s_done = S
                 _part_ends(lo, path)
