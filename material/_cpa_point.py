@@ -198,6 +198,19 @@ def _fails_again(lam, path):
 
 
 @njit(cache=True, error_model="numpy", **NO_REFCOUNT)
+def _slips_out(law, plane, kap_n, strong, eta_f, kap_out, loading):
+    """The outputs of the planes at a solution whose per-plane rows ``plane`` hold: kap_out, loading (a slip
+    that grows), and the largest mobilisation etah_a / eta_f,a, which it returns."""
+    best = 0.0
+    for a in range(kap_n.shape[0]):
+        slip = plane[_P_SLIP, a]
+        kap_out[a] = kap_n[a] + max(slip, 0.0)
+        loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
+        best = max(best, plane[_P_RATIO, a] / eta_f[a])
+    return best
+
+
+@njit(cache=True, error_model="numpy", **NO_REFCOUNT)
 def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shift, sig_out, kap_out, D_out,
                  loading, grad_out, ws, path):
     """Integrate one Gauss point (Mandel vectors; see the module docstring for the algorithm).
@@ -356,25 +369,17 @@ def point_update(law, pd, opt, sig_n, de, eps_n, kap_n, soft, c0, m_over, nl_shi
                 for a in range(M):
                     dk[a] = dk_done[a] if strong[a] else 0.0
                 evaluate(law, pd, pt, sig_done, dk, dl_done, s_done, False, False, plane, ws)
-                best = 0.0
-                for a in range(M):
-                    slip = plane[_P_SLIP, a]
-                    kap_out[a] = kap_n[a] + max(slip, 0.0)
-                    loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
-                    best = max(best, plane[_P_RATIO, a] / eta_f[a])
+                best = _slips_out(law, plane, kap_n, strong, eta_f, kap_out, loading)
                 return LIMIT, total_its, halvings, lo, dl_done, best, mu, 0.0
             if halvings > opt.max_halvings:
                 _keep_start(law, opt.tangent, sig_n, kap_n, sig_out, kap_out, D_out, loading)
                 return FAILED, total_its, halvings, lam_done, 0.0, np.nan, mu, 0.0
     _part_ends(1.0, path)
     # the solution at lam = 1 (sig, dk, plane and the LU factors of J are those of the last Newton solve)
-    best = 0.0
+    best = _slips_out(law, plane, kap_n, strong, eta_f, kap_out, loading)
     over = 0.0
     for a in range(M):
         slip = plane[_P_SLIP, a]
-        kap_out[a] = kap_n[a] + max(slip, 0.0)
-        loading[a] = slip > (0.0 if not strong[a] else 1e-12 * law.A)
-        best = max(best, plane[_P_RATIO, a] / eta_f[a])
         if slip > 0.0:  # the floor's share of the plane's ratio: etah = eta(kappa) + h dkappa (ws.floor: lam = 1)
             over = max(over, ws.floor[a] * slip / plane[_P_RATIO, a])
     for i in range(6):
