@@ -30,7 +30,7 @@ import timeit  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-from material import CPAModel, LinearElastic, load_preset
+from material import CPAModel, LinearElastic, load_preset  # noqa: E402
 from material.anisotropy import axes_from_alpha  # noqa: E402
 
 #: Floating-point operations per plane of one evaluation of ``material._cpa_local.evaluate`` with the
