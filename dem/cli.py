@@ -135,7 +135,7 @@ def _rotate(args) -> int:
 
 def _fabric(args) -> int:
     import dem
-    from dem.sweep import write_csv
+    from material.table import Table
 
     state = dem.load(_state_path(args.state))
     fab = dem.fabric(state, measure=args.measure, grid_spacing_m=args.spacing_um * 1e-6)
@@ -150,8 +150,9 @@ def _fabric(args) -> int:
     cf = dem.contact_fabric(state)
     print(f"  contact-normal fabric phi = [[{cf[0, 0]:.4f}, {cf[0, 1]:.4f}], [{cf[1, 0]:.4f}, {cf[1, 1]:.4f}]]")
     if args.out:
-        write_csv(args.out, {"direction_deg": fab.directions_deg, "value": fab.values, "void_length_m": fab.void_length,
-                             "line_length_m": fab.line_length, "n_intercepts": fab.n_intercepts})
+        Table({"direction_deg": fab.directions_deg, "value": fab.values, "void_length_m": fab.void_length,
+               "line_length_m": fab.line_length, "n_intercepts": fab.n_intercepts},
+              title=f"DEM fabric ({args.measure}) by test-line direction").write_csv(args.out)
         print(f"wrote {args.out}")
     return 0
 

@@ -70,7 +70,8 @@ def table4_run(out, test: str = "T05", scale: float = 0.1, seed: int = 1, axial_
     for stage, run in (("biaxial", biax), ("rotation", rot)):
         for measure in ("mil", "areal_porosity"):
             series = fabric_series(run, measure=measure, grid_spacing_m=grid_spacing_m)
-            write_csv(folder / stage / f"fabric_{measure}.csv", series)
+            Table(series, title=f"DEM fabric ({measure}) along the {stage}").write_csv(
+                folder / stage / f"fabric_{measure}.csv")
     return {"n_particles": n, "porosity0": float(dem.porosity(iso)),
             "phi_peak_deg": float(np.nanmax(biax["phi_mob_deg"])), "max_inertial_number":
             float(max(np.nanmax(biax["inertial_number"]), np.nanmax(rot["inertial_number"])))}
@@ -82,11 +83,6 @@ def run_test(test_id: str, out, scale: float = 0.1, seed: int = 1, axial_strain:
     summary = table4_run(Path(out) / test_id, test_id, scale, seed, axial_strain, rotation_deg, grid_spacing_m,
                          progress)
     return {"test": test_id, **summary}
-
-
-def write_csv(path, columns: dict, descriptions: dict | None = None, title: str = "DEM table") -> Path:
-    """Columns as a :class:`material.table.Table` CSV (commented header)."""
-    return Table(columns, descriptions, title=title).write_csv(path)
 
 
 def sweep(out, tests=None, full: bool = False, scale: float = 0.1, seed: int = 1, workers: int | None = None,
