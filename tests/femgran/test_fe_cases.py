@@ -119,6 +119,30 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     assert abs(p["cpa_equator"] / p["dp30"] - 1) < 0.03
 
 
+@pytest.mark.slow
+def test_isotropic_cpa_footing_on_the_default_mesh_is_the_cone_of_its_own_plane_strain_strength():
+    """The same comparison on the default mesh with the soft sand (E = 6 MPa, resolution 3), where the
+    curves have not yet reached their limit at 0.1 B: the CPA law is 13 % stronger than the phi = 30 deg
+    cone and 6 % stronger than the cone of its 33 planes' average plane-strain strength (phi = 30.5 deg).
+    Measured: CPA 216.6, DP(30) 191.4, DP(30.5) 204.8 kPa (docs/cpa_law.md, section 5.3, all six meshes)."""
+    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
+                                             A=1e-5)
+    from material.factory import plane_strain_axes
+
+    runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(6000.0, 0.3, 0.0, 30.0),
+            "dp30.5": material.DruckerPrager(6000.0, 0.3, 0.0, 30.5)}
+    p = {}
+    for name, mat in runs.items():
+        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=3, plots=False)
+        assert sol.completed, (name, sol.stop_reason)
+        assert sol.history["residual"].max() <= 1e-8
+        p[name] = sol.history["pressure_kPa"][-1]
+    print("isotropic CPA against Drucker-Prager on the default mesh, p(0.1 B) [kPa]:", p)
+    assert 1.10 < p["cpa"] / p["dp30"] < 1.16
+    assert 1.0 < p["cpa"] / p["dp30.5"] < 1.08
+    assert p["dp30"] < p["dp30.5"] < p["cpa"]
+
+
 def test_isotropic_cpa_footing_converges_like_drucker_prager_once_a_surcharge_lifts_its_shallow_points():
     """Why the isotropic CPA footing takes twice Drucker-Prager's Newton iterations (docs/cpa_law.md, section
     4): a third of its full Newton steps are rejected, and half of what such a step misses sits at a pair of
