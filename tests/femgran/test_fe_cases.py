@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import material
-from femgran.cases import element, footing, load_case, run_case, triaxial
+from femgran.cases import element, footing, load_case, triaxial
 from femgran.cases.biaxial import band_angle, biaxial
 from femgran.cases.footing import prandtl_pressure
 from material import CPAModel, driver, load_preset
