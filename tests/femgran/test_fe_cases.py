@@ -88,6 +88,29 @@ def test_prandtl_mesh_convergence_within_three_percent():
     assert ratios[-1] < 1.03
 
 
+def _isotropic_footings(E: float, resolution: int, equator: bool = False) -> dict:
+    """Pressure at s = 0.1 B [kPa] of the rough footing (B = 1 m, gamma = 18, no surcharge, 40 steps) on
+    the isotropic CPA law (the Mohr-Coulomb solid of docs/cpa_law.md, section 5.3) and on the phi = 30 and
+    30.5 deg Drucker-Prager cones, each run to its end below the tolerance; ``equator`` adds the CPA law on
+    the rule ``equator-78``."""
+    from material.factory import plane_strain_axes
+
+    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
+                                             A=1e-5, E=E)
+    runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(E, 0.3, 0.0, 30.0),
+            "dp30.5": material.DruckerPrager(E, 0.3, 0.0, 30.5)}
+    if equator:
+        runs["cpa_equator"] = CPAModel(iso, rule="equator-78", axes=plane_strain_axes(0.0))
+    p = {}
+    for name, mat in runs.items():
+        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=resolution, plots=False)
+        assert sol.completed, (name, sol.stop_reason)
+        assert sol.history["residual"].max() <= 1e-8
+        p[name] = sol.history["pressure_kPa"][-1]
+    print(f"isotropic CPA against Drucker-Prager, E = {E:g} kPa, resolution {resolution}, p(0.1 B) [kPa]:", p)
+    return p
+
+
 @pytest.mark.slow
 def test_isotropic_cpa_footing_against_drucker_prager_cones():
     """The CPA law as an isotropic Mohr-Coulomb solid (eta0 = tan 30 deg, associated at failure, fast
@@ -100,20 +123,7 @@ def test_isotropic_cpa_footing_against_drucker_prager_cones():
     apart on the ring of the plane-strain critical planes make the law Mohr-Coulomb to 0.7 %, the CPA
     footing agrees with the phi = 30 deg cone within 3 %. Measured: CPA 268.2, CPA equator-78 245.7,
     DP(30) 241.3, DP(30.5) 262.5 kPa."""
-    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
-                                             A=1e-5, E=60000.0)
-    from material.factory import plane_strain_axes
-
-    runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(60000.0, 0.3, 0.0, 30.0),
-            "dp30.5": material.DruckerPrager(60000.0, 0.3, 0.0, 30.5),
-            "cpa_equator": CPAModel(iso, rule="equator-78", axes=plane_strain_axes(0.0))}
-    p = {}
-    for name, mat in runs.items():
-        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=2, plots=False)
-        assert sol.completed, (name, sol.stop_reason)
-        assert sol.history["residual"].max() <= 1e-8
-        p[name] = sol.history["pressure_kPa"][-1]
-    print("isotropic CPA against Drucker-Prager, p(0.1 B) [kPa]:", p)
+    p = _isotropic_footings(60000.0, 2, equator=True)
     assert 1.08 < p["cpa"] / p["dp30"] < 1.14
     assert abs(p["cpa"] / p["dp30.5"] - 1) < 0.03
     assert abs(p["cpa_equator"] / p["dp30"] - 1) < 0.03
@@ -125,19 +135,7 @@ def test_isotropic_cpa_footing_on_the_default_mesh_is_the_cone_of_its_own_plane_
     curves have not yet reached their limit at 0.1 B: the CPA law is 13 % stronger than the phi = 30 deg
     cone and 6 % stronger than the cone of its 33 planes' average plane-strain strength (phi = 30.5 deg).
     Measured: CPA 216.6, DP(30) 191.4, DP(30.5) 204.8 kPa (docs/cpa_law.md, section 5.3, all six meshes)."""
-    iso = load_preset("ottawa_c109").replace(omega1=0.0, eta0=float(np.tan(np.radians(30.0))), eta_c_ratio=0.0,
-                                             A=1e-5)
-    from material.factory import plane_strain_axes
-
-    runs = {"cpa": CPAModel(iso, axes=plane_strain_axes(0.0)), "dp30": material.DruckerPrager(6000.0, 0.3, 0.0, 30.0),
-            "dp30.5": material.DruckerPrager(6000.0, 0.3, 0.0, 30.5)}
-    p = {}
-    for name, mat in runs.items():
-        sol = footing(mat, 1.0, 18.0, 0.0, True, settlement_m=0.1, steps=40, resolution=3, plots=False)
-        assert sol.completed, (name, sol.stop_reason)
-        assert sol.history["residual"].max() <= 1e-8
-        p[name] = sol.history["pressure_kPa"][-1]
-    print("isotropic CPA against Drucker-Prager on the default mesh, p(0.1 B) [kPa]:", p)
+    p = _isotropic_footings(6000.0, 3)
     assert 1.10 < p["cpa"] / p["dp30"] < 1.16
     assert 1.0 < p["cpa"] / p["dp30.5"] < 1.08
     assert p["dp30"] < p["dp30.5"] < p["cpa"]
