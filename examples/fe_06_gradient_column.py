@@ -42,10 +42,11 @@ MATERIAL = {"preset": "ottawa_c109", "stabilisation": 0.1,
             "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}}
 
 
-def column(length_m: float, rows: int, *, strain: float = 0.08, weak_half_m: float = 0.001,
-           weakening: float = 0.1) -> dict:
+def column(length_m: float, rows: int, *, strain: float = 0.08, stabilisation: float = 0.1,
+           weak_half_m: float = 0.001, weakening: float = 0.1) -> dict:
     """One column run: ``rows`` elements over the height, the gradient's length ``length_m``, the middle
-    half shortened to ``strain``. Returns the history (strain, q) and the zones (:func:`zone_widths`)."""
+    half shortened to ``strain``, the law's step stabilisation mu = ``stabilisation`` (relaxation time one
+    step of :data:`STEP_STRAIN`). Returns the history (strain, q) and the zones (:func:`zone_widths`)."""
     from femgran.gradient import discretisation_for
     from femgran.mesh import name_box_boundaries, rectangle
     from femgran.solver import Dirichlet, NewtonSolver, PathControl
@@ -55,7 +56,8 @@ def column(length_m: float, rows: int, *, strain: float = 0.08, weak_half_m: flo
     if rows < 8:
         raise ValueError(f"rows = {rows!r}: allowed 8 or more (elements over the height)")
     H, h = HEIGHT_M, HEIGHT_M / rows
-    mat = make_material({**MATERIAL, "nonlocal_length": float(length_m)}, alpha_deg=0.0, plane_strain=True)
+    mat = make_material({**MATERIAL, "stabilisation": float(stabilisation), "nonlocal_length": float(length_m)},
+                        alpha_deg=0.0, plane_strain=True)
     mesh = name_box_boundaries(rectangle(np.linspace(0, h, 2), np.linspace(0, H, rows + 1)))
     d = discretisation_for(mat, mesh, 1)
     y = d.quadrature_points()[:, 1]
@@ -88,7 +90,7 @@ def column(length_m: float, rows: int, *, strain: float = 0.08, weak_half_m: flo
     sol = solver.run(steps=steps, control=control, control_end=strain * 0.5 * H, observers=[observe])
     eps = np.asarray(sol.history["middle_shortening_m"]) / (0.5 * H)
     q = np.asarray(sol.history["q_kPa"])
-    return {"length_m": float(length_m), "h_m": h, "completed": bool(sol.completed), "strain": eps, "q_kPa": q,
+    return {"length_m": float(length_m), "h_m": h, "stabilisation": float(stabilisation), "completed": bool(sol.completed), "strain": eps, "q_kPa": q,
             "iterations": float(np.mean(sol.history["iterations"][1:])), **zone_widths(y, eps, q, np.array(slips))}
 
 
@@ -118,29 +120,33 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--lengths", type=float, nargs="+", default=[0.003, 0.006], help="gradient lengths l [m]")
     ap.add_argument("--per-length", type=int, nargs="+", default=[12], help="element rows per l (h = l / this)")
     ap.add_argument("--strain", type=float, default=0.08, help="the middle half's final strain (compression +)")
+    ap.add_argument("--stabilisation", type=float, nargs="+", default=[0.1, 0.01],
+                    help="step stabilisations mu of the law (the shear-band study's is 0.1)")
     args = ap.parse_args(argv)
     if any(not (np.isfinite(x) and 0 < x <= 0.02) for x in args.lengths):
         ap.error(f"--lengths must be in (0, 0.02] m (the column is 0.1 m tall), got {args.lengths}")
     if any(n < 2 for n in args.per_length):
         ap.error(f"--per-length must be at least 2, got {args.per_length}")
+    if any(not (np.isfinite(mu) and 0 < mu <= 1) for mu in args.stabilisation):
+        ap.error(f"--stabilisation must be in (0, 1] (without it the law stops at the peak), got {args.stabilisation}")
     if not 0.03 <= args.strain <= 0.2:
         ap.error(f"--strain must be in [0.03, 0.2] (the peak is near 2.2 %), got {args.strain}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     runs, table = [], Table(title="fe_06: the CPA gradient's softening zone in a one-dimensional column")
-    for ell in args.lengths:
-        for per in args.per_length:
-            rows = 4 * max(2, round(HEIGHT_M / ell * per / 4))
-            r = column(ell, rows, strain=args.strain)
-            runs.append(r)
-            for s, w, q in zip(r["past_peak"], r["zone_width_m"], r["zone_q_kPa"]):
-                table.append({"length_mm": 1e3 * ell, "element_size_mm": 1e3 * r["h_m"], "past_peak": s, "q_kPa": q,
-                              "zone_width_mm": 1e3 * w, "zone_width_over_length": w / ell,
-                              "completed": int(r["completed"])})
-            print(f"l = {1e3 * ell:g} mm, h = {1e3 * r['h_m']:.3g} mm: peak {r['peak_q_kPa']:.1f} kPa at "
-                  f"{100 * r['peak_strain']:.2f} %, {r['iterations']:.2f} Newton iterations per step; zone / l in "
-                  "the windows from the peak: " + ", ".join(f"{w / ell:.2f}" for w in r["zone_width_m"])
-                  + ("" if r["completed"] else " (stopped early)"), flush=True)
+    for mu, ell, per in ((mu, ell, per) for mu in args.stabilisation for ell in args.lengths
+                         for per in args.per_length):
+        rows = 4 * max(2, round(HEIGHT_M / ell * per / 4))
+        r = column(ell, rows, strain=args.strain, stabilisation=mu)
+        runs.append(r)
+        for s, w, q in zip(r["past_peak"], r["zone_width_m"], r["zone_q_kPa"]):
+            table.append({"stabilisation": mu, "length_mm": 1e3 * ell, "element_size_mm": 1e3 * r["h_m"],
+                          "past_peak": s, "q_kPa": q, "zone_width_mm": 1e3 * w, "zone_width_over_length": w / ell,
+                          "completed": int(r["completed"])})
+        print(f"mu = {mu:g}, l = {1e3 * ell:g} mm, h = {1e3 * r['h_m']:.3g} mm: peak {r['peak_q_kPa']:.1f} kPa at "
+              f"{100 * r['peak_strain']:.2f} %, {r['iterations']:.2f} Newton iterations per step; zone / l in "
+              "the windows from the peak: " + ", ".join(f"{w / ell:.2f}" for w in r["zone_width_m"])
+              + ("" if r["completed"] else " (stopped early)"), flush=True)
     table.write_csv(out / "zones.csv")
     _plot(runs, out / "gradient_column.png")
     return runs
@@ -154,7 +160,7 @@ def _plot(runs, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
     for r in runs:
-        label = f"l = {1e3 * r['length_m']:g} mm, h = {1e3 * r['h_m']:.2g} mm"
+        label = f"mu = {r['stabilisation']:g}, l = {1e3 * r['length_m']:g} mm, h = {1e3 * r['h_m']:.2g} mm"
         axes[0].plot(100 * r["strain"], r["q_kPa"], label=label)
         axes[1].plot(100 * r["past_peak"], r["zone_width_m"] / r["length_m"], "o-", label=label)
     axes[0].set_xlabel("strain of the middle half [%] (compression +)")
