@@ -20,7 +20,8 @@ weak layer adds a spike of its own at the zone's centre, which flips an FWHM bet
 zone from one mesh to the next.
 
 Writes ``zones.csv`` (one row per run and window: l, h, strain past the peak, q, the zone's width) and
-``gradient_column.png`` (the width over l against the strain past the peak), and prints one line per run.
+``gradient_column.png`` (q, and the width over l against the strain past the peak; its data in
+``gradient_column.csv``), and prints one line per run.
 
     python examples/fe_06_gradient_column.py [--lengths 0.003 0.006] [--per-length 12] [--strain 0.08]
 """
@@ -158,6 +159,8 @@ def _plot(runs, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from material.plotting import save_figure
+
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
     for r in runs:
         label = f"mu = {r['stabilisation']:g}, l = {1e3 * r['length_m']:g} mm, h = {1e3 * r['h_m']:.2g} mm"
@@ -172,8 +175,7 @@ def _plot(runs, path: Path) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)  # and the curves it draws as a CSV of the same stem
 
 
 if __name__ == "__main__":
