@@ -132,9 +132,9 @@ def test_fe_06_the_cpa_gradient_zone_in_one_dimension_follows_the_length(tmp_pat
     w3, w6 = (r["zone_width_m"][1:4] / r["length_m"] for r in small)  # the first window: pre-peak growth
     assert len(w3) == len(w6) == 3
     assert np.all(np.abs(w3 / closed - 1) < 0.25) and np.all(np.abs(w6 / closed - 1) < 0.25)
-    assert np.all((w6 / w3 > 0.8) & (w6 / w3 < 1.05))  # measured 0.88-0.91: the width in proportion to l
+    assert np.all((w6 / w3 > 0.8) & (w6 / w3 < 1.05))  # measured 0.87-0.91: the width in proportion to l
     wide = study["zone_width_m"][1:4] / study["length_m"]
-    assert np.all(wide > 1.5 * w6) and np.all(wide > 1.4 * closed)  # measured 1.71-1.95 times mu = 0.01's
+    assert np.all(wide > 1.5 * w6) and np.all(wide > 1.4 * closed)  # measured 1.70-1.95 times mu = 0.01's
     assert 440.0 < small[0]["peak_q_kPa"] < study["peak_q_kPa"] < 475.0  # measured 447.5, 467.1 kPa
 
     out = example.main(["--lengths", "0.006", "--per-length", "3", "--strain", "0.03", "--stabilisation", "0.1",
