@@ -19,7 +19,8 @@ profile; the over-nonlocal von Mises closed form, :func:`femgran.gradient.one_di
 weak layer adds a spike of its own at the zone's centre, which flips an FWHM between the spike and the
 zone from one mesh to the next.
 
-Writes ``zones.csv`` (one row per run and window: l, h, strain past the peak, q, the zone's width) and
+Writes ``zones.csv`` (one row per run and window: mu, l, h, strain past the peak, q, the zone's width;
+each run's rows as it completes, the settings and the package version in its header) and
 ``gradient_column.png`` (q, and the width over l against the strain past the peak; its data in
 ``gradient_column.csv``), and prints one line per run.
 
@@ -33,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from material.table import Table
+from material.table import TableWriter
+from material.version import __version__
 
 HEIGHT_M = 0.1
 P0_KPA = 100.0
@@ -91,7 +93,8 @@ def column(length_m: float, rows: int, *, strain: float = 0.08, stabilisation: f
     sol = solver.run(steps=steps, control=control, control_end=strain * 0.5 * H, observers=[observe])
     eps = np.asarray(sol.history["middle_shortening_m"]) / (0.5 * H)
     q = np.asarray(sol.history["q_kPa"])
-    return {"length_m": float(length_m), "h_m": h, "stabilisation": float(stabilisation), "completed": bool(sol.completed), "strain": eps, "q_kPa": q,
+    return {"length_m": float(length_m), "h_m": h, "stabilisation": float(stabilisation),
+            "completed": bool(sol.completed), "strain": eps, "q_kPa": q,
             "iterations": float(np.mean(sol.history["iterations"][1:])), **zone_widths(y, eps, q, np.array(slips))}
 
 
@@ -134,21 +137,28 @@ def main(argv=None) -> list[dict]:
         ap.error(f"--strain must be in [0.03, 0.2] (the peak is near 2.2 %), got {args.strain}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    runs, table = [], Table(title="fe_06: the CPA gradient's softening zone in a one-dimensional column")
+    runs = []
+    law = {k: v for k, v in MATERIAL.items() if k != "stabilisation"}  # mu: each row's own
+    metadata = {"femgran_version": __version__, "material": law, "height_m": HEIGHT_M, "p0_kPa": P0_KPA,
+                "step_strain": STEP_STRAIN, "window": WINDOW, "weak_layer": "2 mm at mid-height, eta0 10 % lower",
+                "strain": args.strain, "lengths_m": args.lengths, "per_length": args.per_length,
+                "stabilisations": args.stabilisation}
+    table = TableWriter(out / "zones.csv", title="fe_06: the CPA gradient's softening zone in a one-dimensional "
+                        "column", metadata=metadata)  # each run's rows as it completes
     for mu, ell, per in ((mu, ell, per) for mu in args.stabilisation for ell in args.lengths
                          for per in args.per_length):
         rows = 4 * max(2, round(HEIGHT_M / ell * per / 4))
         r = column(ell, rows, strain=args.strain, stabilisation=mu)
         runs.append(r)
         for s, w, q in zip(r["past_peak"], r["zone_width_m"], r["zone_q_kPa"]):
-            table.append({"stabilisation": mu, "length_mm": 1e3 * ell, "element_size_mm": 1e3 * r["h_m"],
+            table.write({"stabilisation": mu, "length_mm": 1e3 * ell, "element_size_mm": 1e3 * r["h_m"],
                           "past_peak": s, "q_kPa": q, "zone_width_mm": 1e3 * w, "zone_width_over_length": w / ell,
                           "completed": int(r["completed"])})
         print(f"mu = {mu:g}, l = {1e3 * ell:g} mm, h = {1e3 * r['h_m']:.3g} mm: peak {r['peak_q_kPa']:.1f} kPa at "
               f"{100 * r['peak_strain']:.2f} %, {r['iterations']:.2f} Newton iterations per step; zone / l in "
               "the windows from the peak: " + ", ".join(f"{w / ell:.2f}" for w in r["zone_width_m"])
               + ("" if r["completed"] else " (stopped early)"), flush=True)
-    table.write_csv(out / "zones.csv")
+    table.close()
     _plot(runs, out / "gradient_column.png")
     return runs
 
