@@ -94,7 +94,7 @@ def column(length_m: float, rows: int, *, strain: float = 0.08, stabilisation: f
     eps = np.asarray(sol.history["middle_shortening_m"]) / (0.5 * H)
     q = np.asarray(sol.history["q_kPa"])
     return {"length_m": float(length_m), "h_m": h, "stabilisation": float(stabilisation),
-            "completed": bool(sol.completed), "strain": eps, "q_kPa": q,
+            "completed": bool(sol.completed), "stop_reason": sol.stop_reason, "strain": eps, "q_kPa": q,
             "iterations": float(np.mean(sol.history["iterations"][1:])), **zone_widths(y, eps, q, np.array(slips))}
 
 
@@ -157,7 +157,7 @@ def main(argv=None) -> list[dict]:
         print(f"mu = {mu:g}, l = {1e3 * ell:g} mm, h = {1e3 * r['h_m']:.3g} mm: peak {r['peak_q_kPa']:.1f} kPa at "
               f"{100 * r['peak_strain']:.2f} %, {r['iterations']:.2f} Newton iterations per step; zone / l in "
               "the windows from the peak: " + ", ".join(f"{w / ell:.2f}" for w in r["zone_width_m"])
-              + ("" if r["completed"] else " (stopped early)"), flush=True)
+              + ("" if r["completed"] else f" (stopped early: {r['stop_reason']})"), flush=True)
     table.close()
     _plot(runs, out / "gradient_column.png")
     return runs
