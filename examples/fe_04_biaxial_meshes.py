@@ -28,7 +28,7 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
-        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3]
+        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ import numpy as np
 
 from femgran.band import is_zone
 from femgran.solver import History
+from material.commandline import parse_set, with_changes
+from material.parameters import load_preset
 from material.sweep import Run, sweep
 from material.table import Table
 
@@ -85,6 +87,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--steps", type=int, default=240, help="nominal load steps")
     ap.add_argument("--stabilisation", type=float, default=0.1,
                     help="step stabilisation of the CPA law (0: the thesis's law, which stops past the peak)")
+    ap.add_argument("--width", type=float, default=0.05, help="specimen width W [m] (height: --height-ratio W)")
+    ap.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
+                    help="change a CPA parameter on top of the study's (repeatable), e.g. eta_c_ratio=0 for "
+                         "associated flow; the run folders' names do not show it, so give each setting its own "
+                         "--out")
     ap.add_argument("--jobs", type=int, default=1,
                     help="runs at a time (worker processes of a local Dask cluster, one numba thread each)")
     ap.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler to run on")
@@ -99,7 +106,7 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     try:
         runs = study(args)
-    except ValueError as err:  # a length or modulus out of range: the usage line and the message, exit code 2
+    except (KeyError, ValueError) as err:  # a length or modulus out of range: the usage line and the message, exit code 2
         ap.error(str(err))
     result = sweep(runs, out, workers=args.jobs, scheduler=args.scheduler, progress=False,
                    title="fe_04 meshes", on_record=_say)
@@ -115,13 +122,16 @@ def main(argv=None) -> dict:
 
 def study(args) -> list[Run]:
     """The runs: each mesh and variant a biaxial case (:func:`femgran.sweep.case_target`), finest mesh first."""
-    material = {"preset": "ottawa_c109", "stabilisation": args.stabilisation,
-                "set": {"E": args.youngs_modulus, "zeta": 1.05, "softening_slip": args.softening_slip,
-                        "residual_ratio": 0.65}}
+    changes = {"E": args.youngs_modulus, "zeta": 1.05, "softening_slip": args.softening_slip,
+               "residual_ratio": 0.65, **parse_set(args.set)}
+    with_changes(load_preset("ottawa_c109"), changes)  # an unknown key or a value out of range: its message here
+    material = {"preset": "ottawa_c109", "stabilisation": args.stabilisation, "set": changes}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
               "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT * 2.0 / args.height_ratio, "weak_zone_size": WEAK_ZONE_SIZE,
               "platens": args.platens, "element_aspect": args.element_aspect,
               "height_ratio": args.height_ratio}
+    if args.width != 0.05:  # only then, so that a study run before the option resumes as it was
+        fields["width_m"] = args.width
     back_stress = args.back_stress
     for name, value in (("--length", args.length), ("--back-stress H", back_stress[0]),
                         ("--back-stress L", back_stress[1])):

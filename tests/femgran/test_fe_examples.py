@@ -112,6 +112,30 @@ def test_fe_04_refuses_a_back_stress_out_of_range(tmp_path, load_example, capsys
     assert not (tmp_path / "sweep.json").exists()
 
 
+def test_fe_04_takes_cpa_changes_and_the_width_from_the_command_line(tmp_path, load_example, capsys):
+    """--set changes the study's sand and --width the specimen; both reach the run. With eta_c_ratio=0 (no
+    compaction) the specimen dilates from the start and is stronger at 1 % (measured: q 377.7 against
+    201.3 kPa, eps_v -0.37 against +0.63 %; the half-width specimen gives the same q, the law has no length).
+    An unknown key stops before any run with argparse's error naming it."""
+    import json
+
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    common = ["--resolutions", "4", "--axial-strain", "0.01", "--steps", "4", "--variants", "regularised"]
+    law = fe_04.main([*common, "--out", str(tmp_path / "law")])[4, "regularised"]
+    changed = fe_04.main([*common, "--set", "eta_c_ratio=0", "--width", "0.025", "--out", str(tmp_path / "set")])
+    params = json.loads((tmp_path / "set" / "resolution_4" / "parameters.json").read_text())
+    assert params["width_m"] == 0.025 and params["height_m"] == pytest.approx(0.05)
+    assert json.loads((tmp_path / "law" / "resolution_4" / "parameters.json").read_text())["width_m"] == 0.05
+    rows = {r["folder"].parent.name: r for r in fe_04.collect(tmp_path / "law") + fe_04.collect(tmp_path / "set")}
+    v_law, v_set = (rows[k]["history"]["eps_v"][-1] for k in ("law", "set"))
+    assert v_set < -1e-3 and v_law > 1e-3  # dilation against compaction (eps_v > 0)
+    assert changed[4, "regularised"]["peak_q_kPa"] > 1.5 * law["peak_q_kPa"]
+    with pytest.raises(SystemExit) as stop:
+        fe_04.main([*common, "--set", "eta_c_rato=0", "--out", str(tmp_path / "bad")])
+    assert stop.value.code == 2 and "eta_c_rato" in capsys.readouterr().err
+    assert not (tmp_path / "bad" / "sweep.json").exists()
+
+
 def test_fe_06_the_cpa_gradient_zone_in_one_dimension_follows_the_length(tmp_path, load_example):
     """In a column where no inclined band can form, the CPA gradient's zone is in proportion to l and, with
     a small step stabilisation, near the over-nonlocal closed form (3.38 l by the same measure); the
