@@ -106,7 +106,7 @@ def main(argv=None) -> dict:
     out = Path(args.out)
     try:
         runs = study(args)
-    except (KeyError, ValueError) as err:  # a length or modulus out of range: the usage line and the message, exit code 2
+    except (KeyError, ValueError) as err:  # a bad length, width or --set: the usage and the message, exit code 2
         ap.error(str(err))
     result = sweep(runs, out, workers=args.jobs, scheduler=args.scheduler, progress=False,
                    title="fe_04 meshes", on_record=_say)
@@ -134,7 +134,7 @@ def study(args) -> list[Run]:
         fields["width_m"] = args.width
     back_stress = args.back_stress
     for name, value in (("--length", args.length), ("--back-stress H", back_stress[0]),
-                        ("--back-stress L", back_stress[1])):
+                        ("--back-stress L", back_stress[1]), ("--width", args.width)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} = {value!r}: must be > 0 (finite)")
     laws = {"regularised": {**material, "regularise": True}, "unregularised": {**material, "regularise": False},

@@ -115,8 +115,8 @@ def test_fe_04_refuses_a_back_stress_out_of_range(tmp_path, load_example, capsys
 def test_fe_04_takes_cpa_changes_and_the_width_from_the_command_line(tmp_path, load_example, capsys):
     """--set changes the study's sand and --width the specimen; both reach the run. With eta_c_ratio=0 (no
     compaction) the specimen dilates from the start and is stronger at 1 % (measured: q 377.7 against
-    201.3 kPa, eps_v -0.37 against +0.63 %; the half-width specimen gives the same q, the law has no length).
-    An unknown key stops before any run with argparse's error naming it."""
+    201.3 kPa, eps_v -0.37 against +0.63 %). An unknown key or a width <= 0 stops before any run with
+    argparse's error naming it."""
     import json
 
     fe_04 = load_example("fe_04_biaxial_meshes")
@@ -133,6 +133,9 @@ def test_fe_04_takes_cpa_changes_and_the_width_from_the_command_line(tmp_path, l
     with pytest.raises(SystemExit) as stop:
         fe_04.main([*common, "--set", "eta_c_rato=0", "--out", str(tmp_path / "bad")])
     assert stop.value.code == 2 and "eta_c_rato" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        fe_04.main([*common, "--width", "-0.05", "--out", str(tmp_path / "bad")])
+    assert stop.value.code == 2 and "--width = -0.05: must be > 0" in capsys.readouterr().err
     assert not (tmp_path / "bad" / "sweep.json").exists()
 
 
