@@ -4,8 +4,8 @@ CPA ``ottawa_c109`` with the post-peak softening switched on (zeta = 1.05: a pla
 kappa* = A / (zeta - 1); beyond it eta decays to 0.65 eta_f with the slip scale ``softening_slip``),
 p0 = 100 kPa, a weak zone (eta0 10 % lower, W/6 wide and W/3 high at the bottom-left corner: the same
 region on every mesh with a multiple of 6 elements across) as the trigger, no geometric imperfection,
-Q1 B-bar elements with 12, 18 and 24 elements across the 50 mm width (h, h/1.5, h/2). Each mesh runs
-twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
+Q1 B-bar elements (``--order 2``: quadratic) with 12, 18 and 24 elements across the 50 mm width
+(h, h/1.5, h/2). Each mesh runs twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
 t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
 it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
 and ``back_stress`` (the gradient back stress X = H (eps_p - ebar_p) of ``--back-stress H L``,
@@ -88,6 +88,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--stabilisation", type=float, default=0.1,
                     help="step stabilisation of the CPA law (0: the thesis's law, which stops past the peak)")
     ap.add_argument("--width", type=float, default=0.05, help="specimen width W [m] (height: --height-ratio W)")
+    ap.add_argument("--order", type=int, choices=(1, 2), default=1,
+                    help="element order: 1 (Q1 B-bar, the study's) or 2 (quadratic displacement, the gradient's "
+                         "field linear; docs/regularisation.md, section 4: the gradient band converges much faster)")
     ap.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
                     help="change a CPA parameter on top of the study's (repeatable), e.g. eta_c_ratio=0 for "
                          "associated flow; the run folders' names do not show it, so give each setting its own "
@@ -132,6 +135,8 @@ def study(args) -> list[Run]:
               "height_ratio": args.height_ratio}
     if args.width != 0.05:  # only then, so that a study run before the option resumes as it was
         fields["width_m"] = args.width
+    if args.order != 1:  # likewise
+        fields["order"] = args.order
     back_stress = args.back_stress
     for name, value in (("--length", args.length), ("--back-stress H", back_stress[0]),
                         ("--back-stress L", back_stress[1]), ("--width", args.width)):
@@ -144,7 +149,8 @@ def study(args) -> list[Run]:
     for alpha in args.alphas:
         for n in sorted(args.resolutions, reverse=True):
             for variant in args.variants:
-                tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha)
+                tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha,
+                           args.order)
                 runs.append(Run(tag, "femgran.sweep:case_target",
                                 {"case": "biaxial", "fields": {**fields, "resolution": n, "alpha_deg": alpha},
                                  "material": laws[variant]},
@@ -153,10 +159,11 @@ def study(args) -> list[Run]:
 
 
 def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0,
-         back_stress=(1000.0, 0.006), alpha: float = 0.0) -> str:
+         back_stress=(1000.0, 0.006), alpha: float = 0.0, order: int = 1) -> str:
     suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm",
               "back_stress": f"_back_stress_{back_stress[0]:g}kPa_{1e3 * back_stress[1]:g}mm"}
-    shape = ("" if aspect == 1.0 else f"_aspect_{aspect:g}") + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W")
+    shape = (("" if order == 1 else f"_order_{order}") + ("" if aspect == 1.0 else f"_aspect_{aspect:g}")
+             + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W"))
     return f"resolution_{n}" + shape + suffix[variant] + ("" if alpha == 0.0 else f"_alpha_{alpha:g}")
 
 
@@ -208,8 +215,10 @@ def collect(out: Path) -> list[dict]:
         params = json.loads((folder / "parameters.json").read_text())
         summary = json.loads((folder / "summary.json").read_text())
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
-        n = int(params["resolution"])
-        rows.append({"resolution": n, "variant": _variant(folder), "alpha_deg": float(params.get("alpha_deg", 0.0)),
+        n, order = int(params["resolution"]), int(params.get("order", 1))
+        variant = _variant(folder)
+        rows.append({"resolution": n, "variant": variant, "order": order, "alpha_deg": float(params.get("alpha_deg", 0.0)),
+                     "series": variant if order == 1 else f"{variant}, quadratic elements",
                      "folder": folder,
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
@@ -220,7 +229,7 @@ def collect(out: Path) -> list[dict]:
         ref = r["reference_angles_deg"]
         length = float(r["variant"].split()[1][:-2]) if r["variant"].startswith("gradient") else float("nan")
         back = r["variant"].split()[2:] if r["variant"].startswith("back stress") else ["nan", "nan"]
-        row = {"resolution": r["resolution"], "alpha_deg": r["alpha_deg"], "crack_band": int(r["variant"] == "crack band"),
+        row = {"resolution": r["resolution"], "order": r["order"], "alpha_deg": r["alpha_deg"], "crack_band": int(r["variant"] == "crack band"),
                "gradient_length_mm (NaN: none)": length,
                "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
                "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm")),
@@ -234,8 +243,8 @@ def collect(out: Path) -> list[dict]:
                    completed=int(r["completed"]))
         table.append(row)
     table.write_csv(out / "meshes.csv")
-    for variant, alpha in sorted({(r["variant"], r["alpha_deg"]) for r in rows}):
-        sel = [r for r in rows if r["variant"] == variant and r["alpha_deg"] == alpha]
+    for variant, alpha in sorted({(r["series"], r["alpha_deg"]) for r in rows}):
+        sel = [r for r in rows if r["series"] == variant and r["alpha_deg"] == alpha]
         parts = []
         for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
             got = [r for r in sel if np.isfinite(r["post_peak_q"][j])]
@@ -256,11 +265,11 @@ def _plot(rows, path):
     import matplotlib.pyplot as plt
 
     fig, (ax, ax_drop) = plt.subplots(1, 2, figsize=(10, 4))
-    keys = sorted({(r["variant"], r["resolution"], r["alpha_deg"]) for r in rows})
+    keys = sorted({(r["series"], r["resolution"], r["alpha_deg"]) for r in rows})
     colours = {k: f"C{i % 10}" for i, k in enumerate(keys)}
-    for r in sorted(rows, key=lambda r: (r["variant"], r["resolution"], r["alpha_deg"])):
-        style = dict(color=colours[(r["variant"], r["resolution"], r["alpha_deg"])], ls=STYLES.get(r["variant"], ":"),
-                     label=f"h = {r['element_size_mm']:.2f} mm, {r['variant']}"
+    for r in sorted(rows, key=lambda r: (r["series"], r["resolution"], r["alpha_deg"])):
+        style = dict(color=colours[(r["series"], r["resolution"], r["alpha_deg"])], ls=STYLES.get(r["variant"], ":"),
+                     label=f"h = {r['element_size_mm']:.2f} mm, {r['series']}"
                            + (f", alpha {r['alpha_deg']:g}" if r["alpha_deg"] else ""))
         e, q = r["history"]["eps_a"], r["history"]["q_kPa"]
         ax.plot(e, q, **style)
@@ -329,10 +338,10 @@ def _plot_alpha(rows, path):
 
     from material.plotting import save_figure
 
-    groups = sorted({(r["variant"], r["resolution"]) for r in rows})
+    groups = sorted({(r["series"], r["resolution"]) for r in rows})
     finest = max((g for g in groups if g[0] == groups[0][0]), key=lambda g: g[1])
-    panels = sorted((r for r in rows if (r["variant"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
-    series = [(i, g, sorted((r for r in rows if (r["variant"], r["resolution"]) == g), key=lambda r: r["alpha_deg"]))
+    panels = sorted((r for r in rows if (r["series"], r["resolution"]) == finest), key=lambda r: r["alpha_deg"])
+    series = [(i, g, sorted((r for r in rows if (r["series"], r["resolution"]) == g), key=lambda r: r["alpha_deg"]))
               for i, g in enumerate(groups)]
     series = [(i, g, sel) for i, g, sel in series if len(sel) > 1]  # a line needs two angles
     fig = plt.figure(figsize=(6 + 2.2 * len(panels), 4.6 + 0.16 * (len(series) + 3)))  # room for the legend
