@@ -5,9 +5,9 @@ kappa* = A / (zeta - 1); beyond it eta decays to 0.65 eta_f with the slip scale 
 p0 = 100 kPa, a weak zone (eta0 10 % lower, W/6 wide and W/3 high at the bottom-left corner: the same
 region on every mesh with a multiple of 6 elements across) as the trigger, no geometric imperfection,
 Q1 B-bar elements (``--order 2``: quadratic) with 12, 18 and 24 elements across the 50 mm width
-(h, h/1.5, h/2). Each mesh runs twice: regularised (the softening slip scale of a point is softening_slip t / h, the band thickness
-t = 6 mm smeared over the element size h: crack band) and unregularised (every element softens as if
-it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
+(h, h/1.5, h/2). Each mesh runs twice: regularised (the softening slip scale of a point is
+softening_slip t / h, the band thickness t = 6 mm smeared over the element size h: crack band) and
+unregularised (every element softens as if it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
 and ``back_stress`` (the gradient back stress X = H (eps_p - ebar_p) of ``--back-stress H L``,
 docs/regularisation.md, section 5) regularise with a length instead, and ``--alphas`` runs every mesh and
 variant at several deposition angles (``band_vs_alpha.png``: the band angle against alpha as the band
@@ -217,8 +217,9 @@ def collect(out: Path) -> list[dict]:
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n, order = int(params["resolution"]), int(params.get("order", 1))
         variant = _variant(folder)
-        rows.append({"resolution": n, "variant": variant, "order": order, "alpha_deg": float(params.get("alpha_deg", 0.0)),
+        rows.append({"resolution": n, "variant": variant, "order": order,
                      "series": variant if order == 1 else f"{variant}, quadratic elements",
+                     "alpha_deg": float(params.get("alpha_deg", 0.0)),
                      "folder": folder,
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
                      "post_peak_q": _post_peak_q(h), "completed": bool(status.get("completed", False)),
@@ -229,7 +230,8 @@ def collect(out: Path) -> list[dict]:
         ref = r["reference_angles_deg"]
         length = float(r["variant"].split()[1][:-2]) if r["variant"].startswith("gradient") else float("nan")
         back = r["variant"].split()[2:] if r["variant"].startswith("back stress") else ["nan", "nan"]
-        row = {"resolution": r["resolution"], "order": r["order"], "alpha_deg": r["alpha_deg"], "crack_band": int(r["variant"] == "crack band"),
+        row = {"resolution": r["resolution"], "order": r["order"], "alpha_deg": r["alpha_deg"],
+               "crack_band": int(r["variant"] == "crack band"),
                "gradient_length_mm (NaN: none)": length,
                "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
                "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm")),
