@@ -7,9 +7,10 @@ region on every mesh with a multiple of 6 elements across) as the trigger, no ge
 Q1 B-bar elements (``--order 2``: quadratic) with 12, 18 and 24 elements across the 50 mm width
 (h, h/1.5, h/2). Each mesh runs twice: regularised (the softening slip scale of a point is
 softening_slip t / h, the band thickness t = 6 mm smeared over the element size h: crack band) and
-unregularised (every element softens as if it were one band thickness wide). The variants ``gradient`` (the implicit gradient of length ``--length``)
-and ``back_stress`` (the gradient back stress X = H (eps_p - ebar_p) of ``--back-stress H L``,
-docs/regularisation.md, section 5) regularise with a length instead, and ``--alphas`` runs every mesh and
+unregularised (every element softens as if it were one band thickness wide). The variants ``gradient``
+(the implicit gradient of length ``--length``) and ``back_stress`` (the gradient back stress
+X = H (eps_p - ebar_p) of ``--back-stress H L``, docs/regularisation.md, section 5) regularise with a
+length instead, and ``--alphas`` runs every mesh and
 variant at several deposition angles (``band_vs_alpha.png``: the band angle against alpha as the band
 forms, in the first 0.5 % of axial strain after the peak, and in the last 0.5 %).
 
@@ -28,7 +29,7 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
-        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--set KEY=VALUE ...]
+        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--order 2] [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -245,8 +246,8 @@ def collect(out: Path) -> list[dict]:
                    completed=int(r["completed"]))
         table.append(row)
     table.write_csv(out / "meshes.csv")
-    for variant, alpha in sorted({(r["series"], r["alpha_deg"]) for r in rows}):
-        sel = [r for r in rows if r["series"] == variant and r["alpha_deg"] == alpha]
+    for series, alpha in sorted({(r["series"], r["alpha_deg"]) for r in rows}):
+        sel = [r for r in rows if r["series"] == series and r["alpha_deg"] == alpha]
         parts = []
         for j, e in enumerate(POST_PEAK_STRAINS):  # only the runs that reached the strain count
             got = [r for r in sel if np.isfinite(r["post_peak_q"][j])]
@@ -256,7 +257,7 @@ def collect(out: Path) -> list[dict]:
                 parts.append(f"at {e:g}: {np.ptp(q):.1f} kPa (of the drop from each mesh's peak: "
                              f"{np.ptp(drop):.1f} kPa) over meshes {[r['resolution'] for r in got]}")
         if parts:
-            print(f"{variant}" + (f", alpha {alpha:g} deg" if alpha else "") + ": spread of q " + "; ".join(parts))
+            print(f"{series}" + (f", alpha {alpha:g} deg" if alpha else "") + ": spread of q " + "; ".join(parts))
     return rows
 
 
