@@ -370,7 +370,10 @@ def _rescale_history(info: dict, scale: float, out_dir) -> None:
 
 def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None, disc=None):
     """The checkpoint to resume from and the scale of its load factor: 1, or old end / new end when the only
-    change is the case's ``extend`` field (e.g. a larger target settlement). A different ``ndofs`` is no
+    change is the case's ``extend`` field (e.g. a larger target settlement), with or without a change of
+    ``steps``. The nominal step after the resume is the new end over the new ``steps``: steps scaled as the
+    end keep the step (and the step stabilisation's relaxation time, one nominal step) of the run so far,
+    so the extended run is the run that aimed at the new end from the start. A different ``ndofs`` is no
     change when the discretisation ``disc`` takes up the checkpoint's vectors (its ``adapt_unknowns``: the
     plane-strain back stress from a checkpoint of six fields)."""
     from femgran import checkpoint as ck
@@ -393,13 +396,15 @@ def _checkpoint_to_resume(out_dir, params: dict, extend: str | None = None, disc
         except (TypeError, ValueError):
             pass  # another layout: the change stays and is reported
     scale = 1.0
-    if extend and changes and all(c.startswith(f"{extend}:") for c in changes):
+    if extend and any(c.startswith(f"{extend}:") for c in changes) \
+            and all(c.startswith((f"{extend}:", "steps:")) for c in changes):
         old, new = info["identity"][extend], now[extend]
         if isinstance(old, (int, float)) and isinstance(new, (int, float)) and new > 0:
             scale, changes = old / new, []
     if changes:
         raise ValueError(f"resume {out_dir}: the inputs differ from those of the checkpoint: " + "; ".join(changes)
-                         + (f" (only {extend} may change on a resume: the loading then goes on to its new end)"
+                         + (f" (only {extend}, and steps with it, may change on a resume: the loading then goes on to "
+                            "its new end)"
                             if extend else ""))
     info["identity"] = now
     return (arrays, info), scale

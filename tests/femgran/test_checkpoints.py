@@ -3,6 +3,7 @@
 import json
 import os
 import re
+import shutil
 import signal
 
 import numpy as np
@@ -422,6 +423,7 @@ def test_a_finished_footing_goes_on_to_a_larger_settlement(tmp_path):
 
     out = Output(tmp_path / "r", plots=False)
     first = run(Footing(resolution=1, steps=6, settlement_m=0.01), SAND, output=out)
+    shutil.copytree(tmp_path / "r", tmp_path / "s")
     longer = run(Footing(resolution=1, steps=6, settlement_m=0.02), SAND, output=out, resume=True)
     direct = run(Footing(resolution=1, steps=12, settlement_m=0.02), SAND)
     h = read_table(tmp_path / "r" / "history.csv")
@@ -433,8 +435,15 @@ def test_a_finished_footing_goes_on_to_a_larger_settlement(tmp_path):
     # the extended run's later steps are twice the direct run's, and the step stabilisation's overstress is
     # first order in the step: 0.5 % apart (51.85 against 51.58 kPa)
     assert longer.history["pressure_kPa"][-1] == pytest.approx(direct.history["pressure_kPa"][-1], rel=1e-2)
+    assert abs(longer.history["pressure_kPa"][-1] / direct.history["pressure_kPa"][-1] - 1) > 1e-3
+    # steps scaled with the end keep the step and the stabilisation's relaxation time: the direct run
+    same_step = run(Footing(resolution=1, steps=12, settlement_m=0.02), SAND,
+                    output=Output(tmp_path / "s", plots=False), resume=True)
+    assert len(same_step.history) == len(direct.history)
+    np.testing.assert_allclose(same_step.history["pressure_kPa"], direct.history["pressure_kPa"], rtol=1e-9)
+    np.testing.assert_allclose(same_step.u, direct.u, rtol=0, atol=1e-9 * np.abs(direct.u).max())
     assert json.loads((tmp_path / "r" / "parameters.json").read_text())["settlement_m"] == 0.02
-    with pytest.raises(ValueError, match=r"K0: 0.5 -> 0.6; .*\(only settlement_m may change on a resume"):
+    with pytest.raises(ValueError, match=r"K0: 0.5 -> 0.6; .*\(only settlement_m, and steps with it, may change on a resume"):
         run(Footing(resolution=1, steps=6, settlement_m=0.03, K0=0.6), SAND, output=out, resume=True)
 
 
