@@ -26,7 +26,10 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 ``meshes.csv`` and a plot of all curves. The runs are a study on the sweep engine (:mod:`material.sweep`):
 ``--jobs 2`` runs them two at a time on a local Dask cluster (one numba thread per worker),
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
-complete. ``meshes.csv`` and the plot collect every run folder found under ``--out``.
+complete. The same command with a larger ``--axial-strain`` and ``--steps`` in proportion takes a
+finished study on to the new end: each run goes on from its last checkpoint, with the step it had, to
+what the run aimed there from the start would give. ``meshes.csv`` and the plot collect every run folder
+found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
         [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--order 2] [--set KEY=VALUE ...]

@@ -80,6 +80,24 @@ def test_fe_04_runs_in_child_processes(tmp_path, load_example):
     assert abs(kids["unregularised"]["history"]["q_kPa"] - q_kid).max() < 1e-9 * q_here.max()
 
 
+def test_fe_04_goes_on_to_a_larger_axial_strain(tmp_path, load_example):
+    """A finished study asked for a larger --axial-strain, with --steps in proportion, goes on from each
+    run's last checkpoint: its history continues where it ended, and the end is the run that aimed there
+    from the start (the same steps)."""
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    common = ["--resolutions", "4", "--variants", "regularised", "--youngs-modulus", "50000"]
+    fe_04.main([*common, "--axial-strain", "0.005", "--steps", "2", "--out", str(tmp_path / "r")])
+    first = fe_04.collect(tmp_path / "r")[0]["history"]
+    fe_04.main([*common, "--axial-strain", "0.01", "--steps", "4", "--out", str(tmp_path / "r")])
+    fe_04.main([*common, "--axial-strain", "0.01", "--steps", "4", "--out", str(tmp_path / "direct")])
+    longer, direct = (fe_04.collect(tmp_path / k)[0]["history"] for k in ("r", "direct"))
+    assert len(first["eps_a"]) == 3 and first["eps_a"][-1] == pytest.approx(0.005)
+    assert len(longer["eps_a"]) == len(direct["eps_a"]) == 5 and longer["eps_a"][-1] == pytest.approx(0.01)
+    np.testing.assert_array_equal(longer["q_kPa"][:3], first["q_kPa"])
+    np.testing.assert_allclose(longer["q_kPa"], direct["q_kPa"], rtol=1e-9)
+    assert abs(longer["q_kPa"][-1] - longer["q_kPa"][2]) > 0.05 * longer["q_kPa"][2]  # it did go on
+
+
 def test_fe_04_back_stress_at_several_deposition_angles(tmp_path, load_example):
     """--variants back_stress --alphas: one run per angle and variant, keyed (mesh, variant, alpha); meshes.csv
     names the angle and the back stress's modulus and length; band_vs_alpha.png is drawn. Before the peak
