@@ -25,8 +25,10 @@ the same way (up to :attr:`CPAModel.MAX_LIMIT_POINTS` times). The stress stays a
 of (d_strain, stress, state), and it is continuous where the one-step answer was not: through the onset
 of a limit point (the fraction tends to 1) and where the limit moves to the start of the step (the rest
 is then the whole increment). At such a point the tangent is the forward difference of this function
-(``state["limit_points"]`` counts them; the rate-independent local hardening law only). A point that
-still cannot be integrated returns its start-of-step stress, ``status = STATUS_FAILED`` and the fraction
+(``state["limit_points"]`` counts them; the rate-independent local hardening law only). With the step
+stabilisation a branch that folds is replaced by the floor homotopy: the whole increment's equations
+solved along the stabilisation's floor, from a multiple of it down to it (``material._cpa_point``). A point
+that still cannot be integrated returns its start-of-step stress, ``status = STATUS_FAILED`` and the fraction
 it reached as a suggested step ratio, never NaN; its inputs are kept (and written to ``replay_dir``) so
 :func:`replay` can re-run it.
 

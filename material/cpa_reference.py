@@ -5,7 +5,8 @@ vectors, the residual written once (:func:`residual`) and every derivative taken
 (d F / d x = Im F(x + i h e) / h, exact to round-off for these analytic expressions) instead of the
 kernel's hand-derived Jacobians and its condensation of the slips. It solves the same equations
 (``docs/cpa_law.md``, section 3) on the same branch: Newton from the start of the step, a plane on its
-kink taking the loading branch, halving the fraction of the increment when Newton fails. The tangent is
+kink taking the loading branch, halving the fraction of the increment when Newton fails, and where that
+branch folds under the step stabilisation, the floor homotopy at the whole increment. The tangent is
 the implicit-function derivative of the converged equations, again by the complex step.
 
 Unknowns x = (sigma (6 components xx yy zz yz xz xy), dkappa of the strong planes, dlambda of the
@@ -350,6 +351,34 @@ def _newton(law, x, args, scale, tol, maxit):
     return False, x
 
 
+def _floor_homotopy(law, n, args, floor, grad, scale, tol, maxit, max_halvings):
+    """Where the branch in the fraction of the increment folds (the step stabilisation's floor over the
+    fraction lam is floor / lam): the equations of the whole increment along the floor k ``floor``, from k = 16
+    (times 4 while Newton from the start fails, at most 4 times) down to 1, the ratio of successive k from
+    1/4 to its square root after each failed solve. The solution at k = 1, or None."""
+    x0 = np.concatenate([_six(args[0]), np.zeros(n - 6)])
+    k_done, x_done = 0.0, None
+    for k in 16.0 * 4.0 ** np.arange(5):
+        ok, x = _newton(law, x0.copy(), (*args, k * floor, grad), scale, tol, maxit)
+        if ok:
+            k_done, x_done = k, x
+            break
+    if x_done is None:
+        return None
+    ratio, failures = 0.25, 0
+    while k_done > 1.0:
+        k = max(1.0, k_done * ratio)
+        ok, x = _newton(law, x_done.copy(), (*args, k * floor, grad), scale, tol, maxit)
+        if ok:
+            k_done, x_done = k, x
+        else:
+            failures += 1
+            if failures > max_halvings:
+                return None
+            ratio = np.sqrt(ratio)
+    return x_done
+
+
 def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=None, step_fraction: float = 1.0,
                  tol: float = 1e-11, maxit: int = 40, max_halvings: int = 12):
     """One point's update by the reference algorithm.
@@ -432,7 +461,11 @@ def update_point(model, d_strain, stress, state, point: int = 0, *, d_nonlocal=N
             h *= 0.5
             halvings += 1
             if halvings > max_halvings:
-                raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
+                x_done = _floor_homotopy(law, x_done.size, (sig_n, de6, eps_n, kap_n, soft, strong), mu / step_fraction,
+                                         grad, scale, tol, maxit, max_halvings) if np.any(mu > 0) else None
+                if x_done is None:
+                    raise ReferenceFailure(f"no solution beyond the fraction {lam_done} of the increment")
+                break
     args = (sig_n, de6, eps_n, kap_n, soft, strong, mu / step_fraction, grad)
     F, dk = residual(law, x_done, *args)
     J = _jacobian(law, x_done, args, scale)

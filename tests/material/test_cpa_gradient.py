@@ -139,6 +139,36 @@ def test_a_failed_coupled_point_replays_with_its_nonlocal_input(tmp_path):
     assert again.nonlocal_length == 0.004 and isinstance(T, CoupledTangent) and st2["status"][0] == 0
 
 
+def test_where_the_branch_in_the_fraction_folds_the_floor_homotopy_carries_the_step():
+    """A point of the shear-band study (quadratic elements, l = 3 mm, mu = 0.01: the corner of the band at the
+    bottom platen, 30 % strain, two planes past their peak) whose branch in the fraction of the increment
+    folds at 0.93 of it: the step failed there and the global step was cut. Along the step stabilisation's
+    floor the whole increment has a solution (the reference's floor homotopy finds the same to 1e-9). It
+    continues the branch: for 0.90 and 0.91 of the increment the branch in the fraction reaches the end
+    (6-8 local iterations), for 0.92 and 0.93 the homotopy gives the answer (429-442 iterations, most in the
+    fractions that fail first), and the stress moves by the same amount over each 0.01 (0.082, 0.079, 0.077,
+    0.074 kPa at most: no jump where the homotopy takes over)."""
+    from pathlib import Path
+
+    path = Path(__file__).parent / "data" / "shear_band_fold_point.npz"
+    model, stress, state, _ = replay(path)
+    stored = dict(np.load(path))
+    assert state["status"][0] == 0
+    kw = dict(d_nonlocal=stored["d_nonlocal"], step_fraction=float(stored["step_fraction"]))
+    st0 = {k[len("state__"):]: v for k, v in stored.items() if k.startswith("state__")}
+    s_ref = update_point(model, stored["d_strain"][0], stored["stress"][0], st0, **kw)[0]
+    assert np.abs(stress[0] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
+    answers = []
+    for scale in (0.90, 0.91, 0.92, 0.93):
+        s, st, _ = model.update(stored["d_strain"] * scale, stored["stress"], {k: v.copy() for k, v in st0.items()},
+                                **dict(kw, d_nonlocal=stored["d_nonlocal"] * scale))
+        assert st["status"][0] == 0
+        answers.append(s[0])
+    steps = np.diff(answers, axis=0)
+    for a, b in zip(steps[:-1], steps[1:]):
+        assert np.abs(b - a).max() <= 0.1 * np.abs(a).max()
+
+
 def test_bad_gradient_input_is_named():
     p = load_preset("ottawa_c109").replace(**SOFT)
     with pytest.raises(ValueError, match="nonlocal_length = 0"):
