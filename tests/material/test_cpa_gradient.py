@@ -143,7 +143,8 @@ def test_where_the_branch_in_the_fraction_folds_the_floor_homotopy_carries_the_s
     """A point of the shear-band study (quadratic elements, l = 3 mm, mu = 0.01: the corner of the band at the
     bottom platen, 30 % strain, two planes past their peak) whose branch in the fraction of the increment
     folds at 0.93 of it: the step failed there and the global step was cut. Along the step stabilisation's
-    floor the whole increment has a solution (the reference's floor homotopy finds the same to 1e-9). It
+    floor the whole increment has a solution (the reference's floor homotopy finds the same stress to 1e-9,
+    and the same coupled tangent). It
     continues the branch: for 0.90 and 0.91 of the increment the branch in the fraction reaches the end
     (6-8 local iterations), for 0.92 and 0.93 the homotopy gives the answer (429-442 iterations, most in the
     fractions that fail first), and the stress moves by the same amount over each 0.01 (0.082, 0.079, 0.077,
@@ -151,13 +152,16 @@ def test_where_the_branch_in_the_fraction_folds_the_floor_homotopy_carries_the_s
     from pathlib import Path
 
     path = Path(__file__).parent / "data" / "shear_band_fold_point.npz"
-    model, stress, state, _ = replay(path)
+    model, stress, state, T = replay(path)
     stored = dict(np.load(path))
     assert state["status"][0] == 0
     kw = dict(d_nonlocal=stored["d_nonlocal"], step_fraction=float(stored["step_fraction"]))
     st0 = {k[len("state__"):]: v for k, v in stored.items() if k.startswith("state__")}
-    s_ref = update_point(model, stored["d_strain"][0], stored["stress"][0], st0, **kw)[0]
+    s_ref, _, _, T_ref = update_point(model, stored["d_strain"][0], stored["stress"][0], st0, **kw)
     assert np.abs(stress[0] - s_ref).max() <= 1e-9 * np.abs(s_ref).max()
+    for field in T._fields:  # the coupled tangent of the solution the homotopy reached (measured: 5e-14)
+        mine, ref = np.asarray(getattr(T, field))[0], np.asarray(getattr(T_ref, field))
+        assert np.abs(mine - ref).max() <= 1e-8 * max(np.abs(ref).max(), 1e-30), field
     answers = []
     for scale in (0.90, 0.91, 0.92, 0.93):
         s, st, _ = model.update(stored["d_strain"] * scale, stored["stress"], {k: v.copy() for k, v in st0.items()},
