@@ -21,8 +21,8 @@ starting points, they are not sub-steps. When the branch ends before lambda = 1 
 strain-driven response) :func:`point_update` reports ``FAILED`` with the fraction it reached, and
 :func:`update_past_limits` goes on from the limit state (next section).
 
-Where the branch in lam folds: the viscosity homotopy
------------------------------------------------------
+Where the branch in lam folds: the floor homotopy
+-------------------------------------------------
 With the step stabilisation (a floor h_a > 0) the branch in lam can fold before lam = 1 although the
 one-step problem at lam = 1 has a solution: over lam the floor is h_a / lam, so lam moves the strain and
 the viscosity together, and past a softening peak their path can turn back. Then the equations at lam = 1
@@ -429,7 +429,6 @@ def _floor_homotopy(law, pd, opt, pt, sig_n, de, ws):
     (``ws.vecs[_V_SIG]``), dk, ``ws.plane`` and the LU factors are those of the solution at k = 1 and
     ``ws.floor`` the floor at lam = 1, as :func:`point_update` leaves them after its last fraction."""
     M = pt.kap_n.shape[0]
-    strong = pt.strong
     sig, sig_done, de_lam = ws.vecs[_V_SIG], ws.vecs[_V_SIG_DONE], ws.vecs[_V_DE]
     dk, dk_done = ws.dk, ws.dk_done
     for i in range(6):
