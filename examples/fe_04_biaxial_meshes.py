@@ -23,7 +23,11 @@ The element itself must not snap back either (crack band: h below a limit that g
 
 Prints, per run, the peak q, friction and dilatancy angles, the band angle (or that no band formed)
 with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.5, 6 %); writes
-``meshes.csv`` and a plot of all curves. The runs are a study on the sweep engine (:mod:`material.sweep`):
+``meshes.csv`` and a plot of all curves. For each setting run on two meshes or more it measures the two
+mesh criteria of the study (:mod:`femgran.convergence`) and prints them in a line: the spread of q over the
+meshes at every strain from the peak to the end, as a fraction of the peak, and the band's thickness in
+each 0.5 % window after the peak against the finest mesh's, in that mesh's elements
+(``mesh_convergence_q.csv``, ``mesh_convergence_band.csv``). The runs are a study on the sweep engine (:mod:`material.sweep`):
 ``--jobs 2`` runs them two at a time on a local Dask cluster (one numba thread per worker),
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
 complete. The same command with a larger ``--axial-strain`` and ``--steps`` in proportion takes a
@@ -232,13 +236,7 @@ def collect(out: Path) -> list[dict]:
     table = Table(title="shear-band study: biaxial runs on several meshes")
     for r in rows:
         ref = r["reference_angles_deg"]
-        length = float(r["variant"].split()[1][:-2]) if r["variant"].startswith("gradient") else float("nan")
-        back = r["variant"].split()[2:] if r["variant"].startswith("back stress") else ["nan", "nan"]
-        row = {"resolution": r["resolution"], "order": r["order"], "alpha_deg": r["alpha_deg"],
-               "crack_band": int(r["variant"] == "crack band"),
-               "gradient_length_mm (NaN: none)": length,
-               "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
-               "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm")),
+        row = {"resolution": r["resolution"], **_series_columns(r),
                "element_size_mm": r["element_size_mm"], "peak_q_kPa": r["peak_q_kPa"]}
         row.update({f"q_at_{e:g}_kPa": q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
         row.update({f"drop_at_{e:g}_kPa": r["peak_q_kPa"] - q for e, q in zip(POST_PEAK_STRAINS, r["post_peak_q"])})
@@ -261,7 +259,52 @@ def collect(out: Path) -> list[dict]:
                              f"{np.ptp(drop):.1f} kPa) over meshes {[r['resolution'] for r in got]}")
         if parts:
             print(f"{series}" + (f", alpha {alpha:g} deg" if alpha else "") + ": spread of q " + "; ".join(parts))
+    _mesh_convergence(rows, out)
     return rows
+
+
+def _series_columns(row) -> dict:
+    """The numeric columns that name a run's series (variant, element order, deposition angle) in the
+    study's tables."""
+    variant = row["variant"]
+    length = float(variant.split()[1][:-2]) if variant.startswith("gradient") else float("nan")
+    back = variant.split()[2:] if variant.startswith("back stress") else ["nan", "nan"]
+    return {"order": row["order"], "alpha_deg": row["alpha_deg"], "crack_band": int(variant == "crack band"),
+            "gradient_length_mm (NaN: none)": length,
+            "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
+            "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm"))}
+
+
+def _mesh_convergence(rows, out: Path) -> None:
+    """The issue's two mesh criteria for each series run on two meshes or more (:mod:`femgran.convergence`):
+    the spread of q at every strain after the peak, and the band's thickness in each 0.5 % window after
+    the peak against the finest mesh's. Writes ``mesh_convergence_q.csv`` and ``mesh_convergence_band.csv``
+    (one block of rows per series, named by the columns of meshes.csv) and prints a line per series."""
+    from femgran.convergence import band_spread, describe, q_spread
+
+    q_all = Table(title="shear-band study: spread of q over the meshes of each series after the peak")
+    band_all = Table(title="shear-band study: band thickness per 0.5 % window after the peak against the finest mesh")
+    for series, alpha in sorted({(r["series"], r["alpha_deg"]) for r in rows}):
+        sel = sorted((r for r in rows if r["series"] == series and r["alpha_deg"] == alpha),
+                     key=lambda r: r["resolution"])
+        if len(sel) < 2:
+            continue
+        name = _series_columns(sel[0])
+        q = q_spread([r["history"] for r in sel])
+        for row in q.rows():
+            q_all.append({**name, **row})
+        try:
+            band = band_spread([r["folder"] for r in sel], [1e-3 * r["element_size_mm"] for r in sel])
+        except (FileNotFoundError, ValueError) as err:  # no VTK series, or nothing written after the peak
+            band, note = None, f"; the band not compared ({err})"
+        else:
+            note = ""
+            for row in band.rows():
+                band_all.append({**name, **row})
+        print(f"{series}" + (f", alpha {alpha:g} deg" if alpha else "") + f", meshes "
+              f"{[r['resolution'] for r in sel]}: " + describe(q, band) + note, flush=True)
+    q_all.write_csv(out / "mesh_convergence_q.csv")
+    band_all.write_csv(out / "mesh_convergence_band.csv")
 
 
 def _plot(rows, path):

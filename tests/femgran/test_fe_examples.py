@@ -80,6 +80,27 @@ def test_fe_04_runs_in_child_processes(tmp_path, load_example):
     assert abs(kids["unregularised"]["history"]["q_kPa"] - q_kid).max() < 1e-9 * q_here.max()
 
 
+def test_fe_04_measures_the_mesh_criteria_of_each_series(tmp_path, load_example, capsys):
+    """A setting run on two meshes: the study writes the spread of q at every strain from the later peak to
+    the end (mesh_convergence_q.csv) and the band of the coarser mesh against the finer one's in each window
+    (mesh_convergence_band.csv), and says both in a line."""
+    from material.table import read_table
+
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    fe_04.main(["--resolutions", "6", "12", "--variants", "regularised", "--axial-strain", "0.04", "--steps", "16",
+                "--out", str(tmp_path)])
+    said = capsys.readouterr().out
+    assert "crack band, meshes [6, 12]: q spreads by at most" in said and "band within one element" in said
+    runs = {r["resolution"]: r["history"] for r in fe_04.collect(tmp_path)}
+    q = read_table(tmp_path / "mesh_convergence_q.csv")
+    later_peak = max(h["eps_a"][np.argmax(h["q_kPa"])] for h in runs.values())
+    assert q["eps_a"][0] == pytest.approx(later_peak, abs=2.5e-4) and q["eps_a"][-1] == pytest.approx(0.04)
+    assert q["spread_kPa"][-1] == pytest.approx(abs(runs[6]["q_kPa"][-1] - runs[12]["q_kPa"][-1]), rel=1e-9)
+    band = read_table(tmp_path / "mesh_convergence_band.csv")
+    assert len(band) >= 1 and np.all(band["element_size_mm"] == pytest.approx(50.0 / 6))
+    assert np.all(band["within_one_element"] == (abs(band["difference_mm"]) <= 50.0 / 12))
+
+
 def test_fe_04_goes_on_to_a_larger_axial_strain(tmp_path, load_example):
     """A finished study asked for a larger --axial-strain, with --steps in proportion, goes on from each
     run's last checkpoint: its history continues where it ended, and the end is the run that aimed there
