@@ -248,7 +248,8 @@ class NewtonLog:
         return out
 
 
-def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> dict[str, np.ndarray]:
+def kinks_along(material, stress, state, d_strain, direction, s, *, along: dict | None = None,
+                **inputs) -> dict[str, np.ndarray]:
     """The material's response along the straight path d_strain + s * direction, s in ``s`` (uniform).
 
     stress (N, 3, 3) and state: the committed start of the step; d_strain, direction (N, 3, 3): the
@@ -261,7 +262,9 @@ def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> di
     either side of the kink. Also ``rate`` (N,): the largest |d sigma / ds| [kPa per unit s], and
     ``failed_at`` (N,): the first s at which the point's update fails (status FAILED; NaN where it never
     does), where the branch the update follows from the start of the step ends.
-    ``inputs``: the material's other inputs, as the solver passes them (``step_fraction``).
+    ``inputs``: the material's other inputs, as the solver passes them (``step_fraction``); ``along``: those
+    that move with s, name -> (value at s = 0, change per unit s), e.g. the increment of a coupled field at
+    the points (``d_nonlocal`` of the implicit gradient), which the Newton direction moves with the strain.
     """
     s = np.asarray(s, dtype=float)
     if s.ndim != 1 or s.size < 3 or not np.allclose(np.diff(s), s[1] - s[0]) or s[1] <= s[0]:
@@ -270,7 +273,8 @@ def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> di
     sig, loading, failed = [], [], []
     for si in s:
         copy = {k: np.array(v, copy=True) for k, v in state.items()}
-        out, st, _ = material.update(d_strain + si * direction, stress, copy, **inputs)
+        moving = {k: np.asarray(a) + si * np.asarray(b) for k, (a, b) in (along or {}).items()}
+        out, st, _ = material.update(d_strain + si * direction, stress, copy, **inputs, **moving)
         sig.append(out.reshape(n, 9))
         failed.append(np.asarray(st["status"]) == STATUS_FAILED if "status" in st else np.zeros(n, bool))
         if "loading" in st:
@@ -292,11 +296,21 @@ def kinks_along(material, stress, state, d_strain, direction, s, **inputs) -> di
 
 def solver_kinks_along(solver, du, ddu, s) -> dict[str, np.ndarray]:
     """:func:`kinks_along` for a :class:`femgran.solver.NewtonSolver` at the iterate du with Newton
-    direction ddu (displacement vectors), from its committed stress and state."""
+    direction ddu (unknown vectors), from its committed stress and state; a coupled field's increment at
+    the points (``disc.point_inputs``) moves along with the strain."""
     d_strain, direction = solver.disc.strain(du), solver.disc.strain(ddu)  # the strain is linear in u
-    rate = {"step_fraction": solver.step_fraction} if getattr(solver.points.material, "rate_dependent", False) else {}
+    rate, along = _inputs_along(solver, du, ddu)
     return kinks_along(solver.points.material, solver.points.stress, solver.points.state, d_strain, direction, s,
-                       **rate)
+                       along=along, **rate)
+
+
+def _inputs_along(solver, du, ddu) -> tuple[dict, dict]:
+    """The material's inputs besides the strain along du + s ddu: (those that stay, ``step_fraction`` of a
+    rate-dependent law; those that move, name -> (value at du, change per unit s)). The coupled fields'
+    point values are linear in the unknowns (interpolations), so two evaluations give them at every s."""
+    rate = {"step_fraction": solver.step_fraction} if getattr(solver.points.material, "rate_dependent", False) else {}
+    at0, at1 = solver.disc.point_inputs(du), solver.disc.point_inputs(du + ddu)
+    return rate, {k: (np.asarray(at0[k]), np.asarray(at1[k]) - np.asarray(at0[k])) for k in at0}
 
 
 def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2.0 ** -8)) -> dict[float, np.ndarray]:
@@ -325,8 +339,8 @@ def zero_step_drift(material, stress, state, inputs=None, step_fractions=(1.0, 2
 
 def stall_report(solver, points: int = 21) -> str:
     """Why the last try of a step found no decrease of the residual along its Newton direction, as one
-    sentence (empty when that try ended otherwise, or for a coupled discretisation, whose extra field this
-    probe does not follow).
+    sentence (empty when that try ended otherwise). A coupled field's increment at the points (the implicit
+    gradient's ``d_nonlocal``, the back stress's fields) moves along the direction with the strain.
 
     The solver keeps the iterate, the direction and the shortest trial s of that line search
     (``NewtonSolver.stalled``); the material is evaluated at ``points`` equally spaced s in [0, s] from the
@@ -343,7 +357,7 @@ def stall_report(solver, points: int = 21) -> str:
     within the step, e.g. every plane of an in-situ state inside its elastic margin). Measured on the
     thesis-sand footing in ``docs/cpa_law.md``, section 4."""
     last = getattr(solver, "stalled", None)
-    if last is None or solver.disc.n_displacement_dofs != solver.disc.ndofs:
+    if last is None:
         return ""
     du, ddu, s_short = last
     s = np.linspace(0.0, s_short, max(int(points), 3))
@@ -361,12 +375,13 @@ def stall_report(solver, points: int = 21) -> str:
     s_fail = float(probe["failed_at"][i])
     s_before = float(s[max(int(np.searchsorted(s, s_fail)) - 1, 0)])
     d_strain, direction = solver.disc.strain(du), solver.disc.strain(ddu)
-    rate = {"step_fraction": solver.step_fraction} if getattr(pts.material, "rate_dependent", False) else {}
+    rate, along = _inputs_along(solver, du, ddu)
     branches = []
     for si in (s_before, 1.0):
         copy = {k: np.array(v[i:i + 1], copy=True) for k, v in pts.state.items()}
         de = d_strain[i:i + 1] + si * direction[i:i + 1]
-        sig, st, _ = pts.material.update(de, pts.stress[i:i + 1], copy, **rate)
+        moving = {k: a[i:i + 1] + si * b[i:i + 1] for k, (a, b) in along.items()}
+        sig, st, _ = pts.material.update(de, pts.stress[i:i + 1], copy, **rate, **moving)
         ok = "status" not in st or int(np.asarray(st["status"])[0]) != STATUS_FAILED
         planes = int(np.asarray(st["loading"])[0].sum()) if "loading" in st else None
         work = float(np.sum((np.asarray(sig)[0] - pts.stress[i]) * de[0]))
@@ -394,7 +409,7 @@ def _iterate_uniqueness(solver, du) -> str:
     pts = solver.points
     rate = {"step_fraction": solver.step_fraction} if getattr(pts.material, "rate_dependent", False) else {}
     copy = {k: np.array(v, copy=True) for k, v in pts.state.items()}
-    sig, st, _ = pts.material.update(solver.disc.strain(du), pts.stress, copy, **rate)
+    sig, st, _ = pts.material.update(solver.disc.strain(du), pts.stress, copy, **rate, **solver.disc.point_inputs(du))
     mu = law.uniqueness_floor(sig, st)
     lost = mu > 0.0
     if not lost.any():

@@ -184,6 +184,32 @@ def test_coupled_newton_matrix_is_the_derivative_of_the_coupled_residual():
     assert np.abs(K[d.n_displacement_dofs:, : d.n_displacement_dofs]).max() > 0  # the coupling is there
 
 
+def test_the_stall_probe_moves_the_nonlocal_field_along_the_newton_direction():
+    """``femgran.diagnostics``: along a Newton direction of the coupled problem the points' nonlocal
+    increment moves with the strain. At a softening state of the bar the probe's stress rates are those of
+    the solver's own evaluations of du + s ddu (to round-off), and differ from those with the nonlocal
+    increment held at the iterate's; ``stall_report`` answers for a coupled run (it used to stay silent)."""
+    from femgran.diagnostics import solver_kinks_along, stall_report
+
+    d, law, bcs, control = _bar(10, 0.1)
+    solver = NewtonSolver(d, law, bcs)
+    assert solver.run(steps=12, control=control, control_end=6e-3).completed
+    rng = np.random.default_rng(4)
+    du = rng.normal(size=d.ndofs) * 1e-5
+    ddu = np.zeros(d.ndofs)
+    ddu[d.n_displacement_dofs:] = 1e-3 * rng.random(d.ndofs - d.n_displacement_dofs)  # the nonlocal field only
+    s = np.linspace(0.0, 1.0, 5)
+    probe = solver_kinks_along(solver, du, ddu, s)
+    stresses = [solver.points.evaluate(d.strain(du + si * ddu), **d.point_inputs(du + si * ddu))[0].reshape(-1, 9)
+                for si in s]
+    rate = np.abs(np.diff(stresses, axis=0) / 0.25).max(axis=(0, 2))
+    assert rate.max() > 0.0  # the field alone moves the softening points' stress
+    np.testing.assert_allclose(probe["rate"], rate, rtol=1e-9, atol=1e-9 * rate.max())
+    solver.stalled = (du, ddu, 0.25)
+    note = stall_report(solver)
+    assert note.startswith("along the last Newton direction (its line search tried down to s = 0.25)")
+
+
 def test_a_homogeneous_specimen_follows_the_local_law():
     """No imperfection: ebar = e everywhere, so the gradient bar is the local von Mises bar (to the solver's
     tolerance), through the peak and the softening."""
