@@ -150,7 +150,7 @@ def describe(q: "Table | None" = None, band: "Table | None" = None) -> str:
                 else float("nan")
             head = f"the {band.metadata['arm']} band within one element of the finest mesh ({h:.2f} mm)"
             if ok.all():
-                parts.append(f"{head} in {'its one window' if n == 1 else f'all {n} windows'} (largest difference "
+                parts.append(f"{head} in {'its one window' if n == 1 else 'both windows' if n == 2 else f'all {n} windows'} (largest difference "
                              f"{largest:.2f} mm)")
             else:
                 first = int(np.argmin(ok))  # the first window where it is not
