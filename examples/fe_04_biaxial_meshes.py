@@ -27,7 +27,8 @@ with the Coulomb / Roscoe / Arthur angles, q at three post-peak strains (3.5, 4.
 mesh criteria of the study (:mod:`femgran.convergence`) and prints them in a line: the spread of q over the
 meshes at every strain from the peak to the end, as a fraction of the peak, and the band's thickness in
 each 0.5 % window after the peak against the finest mesh's, in that mesh's elements
-(``mesh_convergence_q.csv``, ``mesh_convergence_band.csv``). The runs are a study on the sweep engine (:mod:`material.sweep`):
+(``mesh_convergence_q.csv``, ``mesh_convergence_band.csv``). The runs are a study on the sweep engine
+(:mod:`material.sweep`):
 ``--jobs 2`` runs them two at a time on a local Dask cluster (one numba thread per worker),
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
 complete. The same command with a larger ``--axial-strain`` and ``--steps`` in proportion takes a

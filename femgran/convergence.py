@@ -150,11 +150,11 @@ def describe(q: "Table | None" = None, band: "Table | None" = None) -> str:
                 else float("nan")
             head = f"the {band.metadata['arm']} band within one element of the finest mesh ({h:.2f} mm)"
             if ok.all():
-                parts.append(f"{head} in {'its one window' if n == 1 else 'both windows' if n == 2 else f'all {n} windows'} (largest difference "
-                             f"{largest:.2f} mm)")
+                which = "its one window" if n == 1 else "both windows" if n == 2 else f"all {n} windows"
+                parts.append(f"{head} in {which} (largest difference {largest:.2f} mm)")
             else:
                 first = int(np.argmin(ok))  # the first window where it is not
-                upto = (f"every one up to {100 * band['eps_to'][band['window'] == first][0]:.2f} %; " if first else "")
+                upto = f"every one up to {100 * band['eps_to'][band['window'] == first][0]:.2f} %; " if first else ""
                 parts.append(f"{head} in {int(ok.sum())} of {n} windows ({upto}first miss: window {first + 1}; "
                              f"largest difference {largest:.2f} mm)")
     return "; ".join(parts)

@@ -27,7 +27,8 @@ def test_the_spread_of_q_is_taken_from_the_latest_peak_to_the_earliest_end():
     assert table["spread_kPa"][-1] == pytest.approx(5.3)
     assert table["spread_of_peak"].max() == pytest.approx(5.3 / 402.0)
     assert table.metadata["peak_q_kPa"] == 402.0
-    assert describe(q=table).startswith("q spreads by at most 1.32 % of the peak (5.3 kPa at 1.50 %) from 0.20 to 1.50 %")
+    assert describe(q=table).startswith("q spreads by at most 1.32 % of the peak (5.3 kPa at 1.50 %) "
+                                        "from 0.20 to 1.50 %")
     with pytest.raises(ValueError, match="at least two runs"):
         q_spread(runs[:1])
     with pytest.raises(ValueError, match="history 1: eps_a must increase"):
@@ -59,7 +60,8 @@ def _run_folder(folder, n, thickness_mm, angle_deg=60.0):
             rate = 0.2 + np.exp(-0.5 * (distance / (fwhm / 2.3548)) ** 2)
             strain += 1e-3 * rate[:, None, None] * shape
         name = f"biaxial_{k:04d}.vtu"
-        meshio.write(folder / name, meshio.Mesh(points, [("quad", quads)], cell_data={"strain": [strain.reshape(-1, 9)]}))
+        meshio.write(folder / name, meshio.Mesh(points, [("quad", quads)],
+                                                cell_data={"strain": [strain.reshape(-1, 9)]}))
         datasets.append(f'<DataSet timestep="{history["load_factor"][k]:.10g}" file="{name}"/>')
     (folder / "biaxial.pvd").write_text('<?xml version="1.0"?><VTKFile type="Collection"><Collection>'
                                         + "".join(datasets) + "</Collection></VTKFile>")
