@@ -35,6 +35,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 import skfem
 
+from femgran.solver import DIRECT_ORDERING
+
 __all__ = ["SeriesWriter", "L2Projector", "point_fields", "read_pvd", "write_parameters", "plot_history", "plot_field"]
 
 
@@ -52,7 +54,7 @@ class L2Projector:
         if self.basis.X.shape[1] != disc.nqp:
             raise ValueError("projection basis: quadrature differs from the solver's")
         M = skfem.BilinearForm(lambda u, v, w: u * v).assemble(self.basis)
-        self._lu = spla.splu(M.tocsc())
+        self._lu = spla.splu(M.tocsc(), permc_spec=DIRECT_ORDERING)
         nb = self.basis.Nbfun
         self._N = np.stack([np.asarray(self.basis.basis[a][0]) for a in range(nb)])  # (nb, nel, nq)
         self._dofs = self.basis.element_dofs  # (nb, nel)
