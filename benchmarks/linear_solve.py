@@ -11,7 +11,12 @@ time ratio and the difference of the solutions. The cases:
   system, structurally symmetric but not symmetric);
 * ``triaxial``: the 3D specimen with rough platens (``femgran triaxial``'s default mesh).
 
+With ``--whole-run N`` it also runs each case's first N steps once with each ordering (in this process,
+one after the other) and prints the wall times and their ratio: what the ordering saves a whole run, the
+material updates and assemblies included.
+
     python benchmarks/linear_solve.py [--cases footing band24 band48 triaxial] [--repeat 3] [--nth 3]
+                                      [--whole-run N]
 """
 
 from __future__ import annotations
@@ -76,6 +81,19 @@ def take_matrix(name: str, nth: int):
     raise RuntimeError(f"{name}: fewer than {nth} linear solves")
 
 
+def whole_run(name: str, steps: int, ordering: str) -> float:
+    """Wall time of case ``name``'s first ``steps`` steps with the direct solver's ``ordering``."""
+    case, material = CASES[name]()
+    saved = fsolver.DIRECT_ORDERING
+    fsolver.DIRECT_ORDERING = ordering
+    try:
+        t0 = time.perf_counter()
+        run(case, material, solver={"linear_solver": "superlu"}, output=Output(None), max_steps=steps)
+        return time.perf_counter() - t0
+    finally:
+        fsolver.DIRECT_ORDERING = saved
+
+
 def _time(K, b, ordering: str, repeat: int):
     best = np.inf
     for _ in range(repeat):
@@ -91,6 +109,8 @@ def main(argv=None) -> None:
     ap.add_argument("--cases", nargs="+", choices=tuple(CASES), default=list(CASES))
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--nth", type=int, default=3, help="take the matrix of this linear solve of each run")
+    ap.add_argument("--whole-run", type=int, default=0, metavar="N", help="also time the first N steps of each run "
+                    "with either ordering")
     args = ap.parse_args(argv)
     new = fsolver.DIRECT_ORDERING
     print(f"{'case':<10}{'DOFs':>8}{'nnz':>10}{'COLAMD [s]':>12}{new + ' [s]':>20}{'fill ratio':>12}"
@@ -102,6 +122,11 @@ def main(argv=None) -> None:
         diff = np.abs(x_new - x_old).max() / np.abs(x_old).max()
         print(f"{name:<10}{K.shape[0]:>8}{K.nnz:>10}{t_old:>12.4f}{t_new:>20.4f}{fill_new / fill_old:>12.2f}"
               f"{t_old / t_new:>12.2f}{diff:>10.1e}")
+    if args.whole_run:
+        print(f"\nthe first {args.whole_run} steps of each run [s]:")
+        for name in args.cases:
+            t_old, t_new = (whole_run(name, args.whole_run, o) for o in ("COLAMD", new))
+            print(f"{name:<10} COLAMD {t_old:8.1f}   {new} {t_new:8.1f}   ratio {t_old / t_new:5.2f}")
 
 
 if __name__ == "__main__":

@@ -154,6 +154,44 @@ def test_cutback_recovers_from_a_too_large_step():
     assert abs(r_cut - r_fine) < 0.02 * abs(r_fine)
 
 
+def _steps(sol):
+    """(size, cut-backs, Newton iterations) of each converged step of a run."""
+    h = sol.history
+    return np.diff(h["load_factor"]), np.asarray(h["cutbacks"][1:]), np.asarray(h["iterations"][1:])
+
+
+def test_the_step_grows_only_after_two_easy_steps_without_a_cut_back():
+    """SolverOptions.easy_steps: dt grows by ``grow`` only after that many consecutive converged steps that
+    were not cut back and took at most ``easy_iter`` iterations. On a law that fails above a strain
+    increment, growth after every easy step grows the step right after a cut-back, back
+    toward the size that failed, and is cut back more often (easy_steps = None, the default: the earlier
+    rule); and a run stopped between two easy steps and
+    resumed from its run state takes the same steps."""
+    d, bcs = _plastic_cube()
+    vm = material.VonMises(1e4, 0.3, 20.0, 200.0)
+    runs = {k: NewtonSolver(d, _StepLimited(vm, 2e-3), bcs, options=SolverOptions(easy_steps=k)).run(2)
+            for k in (None, 2)}
+    after = {}
+    for k, sol in runs.items():
+        assert sol.completed
+        size, cuts, iters = _steps(sol)
+        grew = np.flatnonzero(size[1:] > size[:-1] * (1 + 1e-9)) + 1
+        grew = grew[grew < len(size) - 1]  # (the last step is cut to the end of the loading)
+        np.testing.assert_allclose(size[grew], 1.5 * size[grew - 1], rtol=1e-12)
+        after[k] = [(cuts[j - 1] == 0, j >= 2 and cuts[j - 2] == 0 and iters[j - 2] <= 6) for j in grew]
+    assert after[2] and all(a and b for a, b in after[2])
+    assert any(not a for a, b in after[None])  # the earlier rule grows the step after a cut-back one
+    assert _steps(runs[2])[1].sum() == 3 and _steps(runs[None])[1].sum() == 6
+    with pytest.raises(ValueError, match="easy_steps = 0: allowed None or integers >= 1"):
+        SolverOptions(easy_steps=0)
+    # stopped after step 3 (the first easy step after a cut-back one) and resumed from its run state
+    solver = NewtonSolver(d, _StepLimited(vm, 2e-3), bcs, options=SolverOptions(easy_steps=2))
+    first = solver.run(2, after_step=lambda s, state: "stop" if state["n_step"] == 3 else None)
+    assert not first.completed and solver.run_state["easy_steps"] == 1
+    resumed = solver.run(2, resume={**solver.run_state, "history": solver.run_state["history"].rows()})
+    np.testing.assert_allclose(_steps(resumed)[0], _steps(runs[2])[0], rtol=1e-12)
+
+
 class _RateRecorder(_StepLimited):
     """Test double: a rate-dependent law (``rate_dependent``) that records the step size it is given."""
 
