@@ -159,7 +159,7 @@ def restore(solver, arrays: dict, info: dict, scale: float = 1.0) -> dict:
         solver._last_increment = (last_du, float(info["last_dt"]) * scale) + \
             ((float(info["last_dc"]),) if info.get("last_dc") is not None else ())
     return {"dt": float(info["dt"]) * scale, "n_step": int(info["n_step"]), "history": info["history"],
-            "residual_log": info["residual_log"], "easy_steps": int(info.get("easy_steps", 0))}
+            "residual_log": info["residual_log"], "easy_streak": int(info.get("easy_streak", 0))}
 
 
 class Checkpointer:
@@ -208,7 +208,7 @@ class Checkpointer:
             arrays["last_du"] = last[0]
         arrays = {k: np.array(v, copy=True) for k, v in arrays.items()}  # the run goes on changing its own
         info = {"format": FORMAT, "femgran_version": __version__, "t": solver.t, "dt": run_state["dt"], "n_step": n,
-                "easy_steps": int(run_state.get("easy_steps", 0)),
+                "easy_streak": int(run_state.get("easy_streak", 0)),
                 "stage": int(getattr(solver, "stage", 0)),
                 "last_dt": None if last is None else float(last[1]),
                 "last_dc": None if last is None or len(last) < 3 else float(last[2]),

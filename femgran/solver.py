@@ -119,9 +119,10 @@ class SolverOptions:
     grows after two such increments). Measured with N = 2 against the default, material evaluations and
     cut-backs (``femgran footing ... --easy-steps 2``; ``examples/fe_04_biaxial_meshes.py --easy-steps 2``):
     * the quadratic shear-band study (l = 6 mm, 36 elements across) from its checkpoint at 1.48 % axial
-      strain into the peak (1.76 %): to 1.72 %, 448 evaluations and 6 cut-backs against 747 and 14. By default every second step there was cut back: a step that converged after a cut-back
-      grew at once back toward the size that had failed, and each failed try ran its 25 iterations (about
-      65 evaluations, against 10-12 for a step that converges);
+      strain into the peak (1.76 %): to 1.72 %, 448 evaluations and 6 cut-backs against 747 and 14. By
+      default every second step there was cut back: a step that converged after a cut-back grew at once
+      back toward the size that had failed, and each failed try ran its 25 iterations (about 65
+      evaluations, against 10-12 for a step that converges);
     * the isotropic CPA footing: E = 60 MPa, resolution 2, 1,157 and 4 against 1,275 and 9; E = 6 MPa 488
       and 0 both on resolution 2, 825 and 2 against 720 and 1 on resolution 3; the same pressures. The
       thesis sand at alpha = 90 deg 407 and 4 against 491 and 8; stabilised (mu = 0.1) at alpha = 0 253
@@ -270,9 +271,9 @@ class Solution:
 #: structurally symmetric (the coupled gradient systems too, whose values are not), and the minimum degree
 #: ordering of A^T + A is the one SuperLU's documentation gives for that case; measured against COLAMD
 #: (scipy's default) on matrices of the solver's own runs, with the same partial pivoting and solutions
-#: equal to 3e-13 (``python benchmarks/linear_solve.py``): half the fill and 2.0 times as fast on the
-#: default footing and the 24-element quadratic shear-band system (16k DOFs), a third of the fill and 3.7
-#: times as fast on the 48-element one (63k DOFs).
+#: equal to 3e-13 (``python benchmarks/linear_solve.py``): half the fill and 2.0-2.3 times as fast on the
+#: default footing (2k DOFs) and the 24-element quadratic shear-band system (16k DOFs), a third of the fill
+#: and 3.7 times as fast on the 48-element one (63k DOFs).
 DIRECT_ORDERING = "MMD_AT_PLUS_A"
 
 
@@ -768,7 +769,7 @@ class NewtonSolver:
         easy = 0  # consecutive easy steps without a cut-back since dt last grew (SolverOptions.easy_steps)
         if resume is not None:
             dt, n_step0 = float(resume["dt"]), int(resume["n_step"])
-            easy = int(resume.get("easy_steps", 0))
+            easy = int(resume.get("easy_streak", 0))
             for r in resume["history"]:
                 history.append(r)
             residual_log = [list(r) for r in resume["residual_log"]]
@@ -788,7 +789,7 @@ class NewtonSolver:
         completed, reason = False, ""
         cuts, n_step = 0, (0 if resume is None else n_step0)
         self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log,
-                          "easy_steps": easy}
+                          "easy_streak": easy}
         while position() < t_end * (1 - 1e-12):
             dt = min(dt, t_end - position())
             self.step_fraction = step_fraction(self.points.material, dt, dt0)
@@ -842,7 +843,7 @@ class NewtonSolver:
             if not fixed_steps and grows:
                 dt, easy = min(dt * opt.grow, dt_max), 0
             self.run_state = {"dt": dt, "n_step": n_step, "history": history, "residual_log": residual_log,
-                              "easy_steps": easy}
+                              "easy_streak": easy}
             stop = None if after_step is None else after_step(self, self.run_state)
             if stop:
                 reason = stop

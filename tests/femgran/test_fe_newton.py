@@ -187,7 +187,7 @@ def test_the_step_grows_only_after_two_easy_steps_without_a_cut_back():
     # stopped after step 3 (the first easy step after a cut-back one) and resumed from its run state
     solver = NewtonSolver(d, _StepLimited(vm, 2e-3), bcs, options=SolverOptions(easy_steps=2))
     first = solver.run(2, after_step=lambda s, state: "stop" if state["n_step"] == 3 else None)
-    assert not first.completed and solver.run_state["easy_steps"] == 1
+    assert not first.completed and solver.run_state["easy_streak"] == 1
     resumed = solver.run(2, resume={**solver.run_state, "history": solver.run_state["history"].rows()})
     np.testing.assert_allclose(_steps(resumed)[0], _steps(runs[2])[0], rtol=1e-12)
 
