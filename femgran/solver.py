@@ -271,9 +271,11 @@ class Solution:
 #: structurally symmetric (the coupled gradient systems too, whose values are not), and the minimum degree
 #: ordering of A^T + A is the one SuperLU's documentation gives for that case; measured against COLAMD
 #: (scipy's default) on matrices of the solver's own runs, with the same partial pivoting and solutions
-#: equal to 3e-13 (``python benchmarks/linear_solve.py``, three runs on a loaded machine): half the fill
-#: and 2.0-3.0 times as fast on the default footing (2k DOFs) and the 24-element quadratic shear-band
-#: system (16k DOFs), a third of the fill and 3.7-4.2 times as fast on the 48-element one (63k DOFs).
+#: equal to 3e-13 (``python benchmarks/linear_solve.py``, idle and loaded machine): half the fill and
+#: 1.9-3.0 times as fast on the default footing (2k DOFs) and the 24-element quadratic shear-band system
+#: (16k DOFs), a third of the fill and 3.7-4.2 times as fast on the 48-element one (63k DOFs); the first 20
+#: steps of the whole runs (``--whole-run 20``, idle): 1.08 times as fast (band, 24 elements), 1.14 (the
+#: Drucker-Prager footing).
 DIRECT_ORDERING = "MMD_AT_PLUS_A"
 
 
