@@ -163,10 +163,9 @@ def _steps(sol):
 def test_the_step_grows_only_after_two_easy_steps_without_a_cut_back():
     """SolverOptions.easy_steps: dt grows by ``grow`` only after that many consecutive converged steps that
     were not cut back and took at most ``easy_iter`` iterations. On a law that fails above a strain
-    increment, growth after every easy step grows the step right after a cut-back, back
-    toward the size that failed, and is cut back more often (easy_steps = None, the default: the earlier
-    rule); and a run stopped between two easy steps and
-    resumed from its run state takes the same steps."""
+    increment, growth after every easy step (easy_steps = None, the default: the earlier rule) grows the
+    step right after a cut-back, back toward the size that failed, and is cut back more often; and a run
+    stopped between two easy steps and resumed from its run state takes the same steps."""
     d, bcs = _plastic_cube()
     vm = material.VonMises(1e4, 0.3, 20.0, 200.0)
     runs = {k: NewtonSolver(d, _StepLimited(vm, 2e-3), bcs, options=SolverOptions(easy_steps=k)).run(2)
