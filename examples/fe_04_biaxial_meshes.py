@@ -384,7 +384,8 @@ def _plot_alpha(rows, path):
     """The band angle against the deposition angle, one line per variant and mesh, in the first window of
     0.5 % axial strain after the peak (circles: the band as it forms) and in the last (squares), with the
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
-    zone or a diffuse field: :attr:`femgran.band.Band.verdict`); and beside it, for the finest mesh of the
+    zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
+    increment (triangles, where there is one); and beside it, for the finest mesh of the
     first variant, the deviatoric strain increment from the peak to the end of each run. Prints each run's
     two windows."""
     import matplotlib
@@ -419,6 +420,12 @@ def _plot_alpha(rows, path):
                 legend.append((line, f"{variant}, {n} elements across"))
             ax.scatter(a[band], angle[band], color=f"C{i}", marker=marker)
             ax.scatter(a[~band], angle[~band], facecolors="none", edgecolors=f"C{i}", marker=marker)
+        # the other arm of the X over the whole post-peak increment (the summary's conjugate band): with
+        # inclined bedding the two arms are not symmetric, and either may be the one the law's tangent selects
+        other = np.array([float(r.get("conjugate_band_angle_deg", np.nan)) for r in sel])
+        if np.isfinite(other).any():
+            ax.plot(a, other, ":", color=f"C{i}", lw=0.8, marker="v",
+                    label=f"{variant}, {n} elements across, the other arm, peak to end")
         if reference is None:
             reference = (a, sel)
     if reference is not None:  # the first series' own Coulomb, Roscoe and Arthur angles
@@ -428,7 +435,8 @@ def _plot_alpha(rows, path):
             legend.append((line, ref))
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
            title="the band against the bedding, first (o) and last (s) 0.5 % window\n"
-                 "after the peak; open: no band in that window (a zone or diffuse)")
+                 "after the peak; open: no band in that window (a zone or diffuse);\n"
+                 "v: the other arm, from the peak to the end")
     ax.title.set_fontsize(9)
     ax.legend(*zip(*legend), fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=1,
               frameon=False)  # below the axes
