@@ -423,9 +423,11 @@ def _plot_alpha(rows, path):
         # the other arm of the X over the whole post-peak increment (the summary's conjugate band): with
         # inclined bedding the two arms are not symmetric, and either may be the one the law's tangent selects
         other = np.array([float(r.get("conjugate_band_angle_deg", np.nan)) for r in sel])
-        if np.isfinite(other).any():
-            ax.plot(a, other, ":", color=f"C{i}", lw=0.8, marker="v",
-                    label=f"{variant}, {n} elements across, the other arm, peak to end")
+        if np.isfinite(other).any():  # filled where the summary calls that arm a band, open where not
+            ax.plot(a, other, ":", color=f"C{i}", lw=0.8, label=f"{variant}, {n} elements across, the other arm, peak to end")
+            other_band = np.array([bool(r.get("conjugate_localised", False)) for r in sel])
+            ax.scatter(a[other_band], other[other_band], color=f"C{i}", marker="v")
+            ax.scatter(a[~other_band], other[~other_band], facecolors="none", edgecolors=f"C{i}", marker="v")
         if reference is None:
             reference = (a, sel)
     if reference is not None:  # the first series' own Coulomb, Roscoe and Arthur angles
