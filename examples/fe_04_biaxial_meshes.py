@@ -129,7 +129,7 @@ def main(argv=None) -> dict:
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
     if len({r["alpha_deg"] for r in rows}) > 1:
-        _plot_alpha(rows, out / "band_vs_alpha.png")
+        _plot_alpha(rows, out / "band_vs_alpha.png", runs[0].kwargs["material"])
     if args.alphas == [0.0]:
         return {(int(r["values"]["resolution"]), r["values"]["variant"]): r["summary"] for r in result.records}
     return {(int(r["values"]["resolution"]), r["values"]["variant"], r["values"]["alpha_deg"]): r["summary"]
@@ -380,14 +380,15 @@ def _describe(name: str, b: dict) -> str:
                    f"{1e3 * b['section_m']:.1f} mm, contrast {b['contrast']:.2g})")
 
 
-def _plot_alpha(rows, path):
+def _plot_alpha(rows, path, material_spec: dict | None = None):
     """The band angle against the deposition angle, one line per variant and mesh, in the first window of
     0.5 % axial strain after the peak (circles: the band as it forms) and in the last (squares), with the
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
     zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
-    increment (triangles, where there is one); and beside it, for the finest mesh of the
-    first variant, the deviatoric strain increment from the peak to the end of each run. Prints each run's
-    two windows."""
+    increment (triangles, where there is one), and, for ``material_spec`` (the study's sand), Rice's onset on
+    the plane-strain element path for the rising and the falling bands (:func:`femgran.figures.rice_onset_angles`);
+    and beside it, for the finest mesh of the first variant, the deviatoric strain increment from the peak to
+    the end of each run. Prints each run's two windows and Rice's angles."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -435,6 +436,16 @@ def _plot_alpha(rows, path):
         for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
             (line,) = ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
             legend.append((line, ref))
+        if material_spec is not None:  # the law's own bands, each family (the X's arms need not be mirror images)
+            from femgran.figures import rice_onset_angles
+
+            angles, onset = rice_onset_angles(material_spec, float(sel[0].get("p0_kPa", 100.0)), alphas=tuple(a))
+            for family, style in (("falling", "-"), ("rising", "--")):
+                print(f"Rice's onset on the element path, {family} bands: "
+                      + ", ".join(f"alpha {g:g}: {v:.2f} deg" for g, v in zip(angles, onset[family])), flush=True)
+                (line,) = ax.plot(angles, onset[family], style, color="0.55", lw=2.2, zorder=0,
+                                  label=f"Rice, {family} bands")
+                legend.append((line, f"Rice's onset (element, rate-independent), {family} bands"))
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
            title="the band against the bedding, first (o) and last (s) 0.5 % window\n"
                  "after the peak; open: no band in that window (a zone or diffuse);\n"

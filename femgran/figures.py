@@ -36,7 +36,7 @@ import numpy as np
 from material.commandline import add_out, add_progress, write_run_record
 from material.sweep import Run, key_of
 
-__all__ = ["GROUPS", "make_all", "register"]
+__all__ = ["GROUPS", "make_all", "register", "rice_onset_angles"]
 
 _MATERIAL = {"preset": "ottawa_c109", "stabilisation": 0.1}  # the footing runs to its end (docs/cpa_law.md, 4)
 
@@ -338,8 +338,9 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
         ax.plot(alphas, [r["summary"].get(f"reference_angles_deg_{ref}", np.nan) for _, r in runs], style, label=ref)
     fields = runs[0][1]["kwargs"]["fields"]
-    grid, onset = _rice_onset_angles(_band_setup(full)[3], float(fields.get("p0_kPa", 100.0)))
-    ax.plot(grid, onset, "k-", lw=1.2, label="Rice's onset (element, rate-independent)")
+    grid, onset = rice_onset_angles(_band_setup(full)[3], float(fields.get("p0_kPa", 100.0)))
+    ax.plot(grid, onset["falling"], "k-", lw=1.2, label="Rice's onset, falling bands (element, rate-independent)")
+    ax.plot(grid, onset["rising"], "k--", lw=1.2, label="Rice's onset, rising bands (element, rate-independent)")
     ax.set(xlabel="deposition angle alpha [deg]", ylabel="band angle from the minor stress direction [deg]",
            title=f"biaxial with softening, {alpha_mesh} elements across\n{_band_regularisation(full)}")
     _tidy(ax)
@@ -347,29 +348,32 @@ def _band_alpha_draw(runs_dir: Path, records: dict, out: Path, full: bool) -> di
     save_figure(fig, out / "shear_band_vs_alpha.png")
     return {"shear_band_vs_alpha": "The band angle of the softening biaxial test against the deposition angle, "
                                    "with the Coulomb, Roscoe and Arthur angles from each run's own peak and the "
-                                   "band in which the law's own tangent first admits a band (Rice's condition on "
-                                   "the plane-strain element test of the same sand without the step "
-                                   "stabilisation)."}
+                                   "bands in which the law's own tangent first admits a band, rising and falling "
+                                   "(Rice's condition on the plane-strain element test of the same sand without "
+                                   "the step stabilisation)."}
 
 
-def _rice_onset_angles(material_spec: dict, p0_kPa: float, alphas=tuple(range(0, 91, 15))):
+def rice_onset_angles(material_spec: dict, p0_kPa: float, alphas=tuple(range(0, 91, 15))):
     """The band angle at the onset of localisation of the study's sand on the plane-strain element path
     (:func:`material.driver.plane_strain`, Rice's condition): the rate-independent local law (no step
-    stabilisation, no gradient: both keep the algorithmic tangent elliptic or add a length the element
-    does not have), 400 steps to 5 % (the same to 0.25 deg with 1600; docs/regularisation.md, section 4).
-    Returns (alphas, angles [deg], NaN where the path stays elliptic)."""
+    stabilisation, no gradient, no back stress: the first keeps the algorithmic tangent elliptic, the others
+    add a length the element does not have), 400 steps to 5 % (the same to 0.25 deg with 1600; docs/regularisation.md, section 4).
+    Returns (alphas, {"rising": angles [deg], "falling": angles [deg]}): each family's band nearest to
+    forming at the last elliptic row (the driver tilts the bedding toward +x, as the biaxial case does), NaN
+    where the path stays elliptic."""
     from material import driver
     from material.factory import make_material
 
-    spec = {k: v for k, v in material_spec.items() if k not in ("nonlocal_length", "regularise")}
+    spec = {k: v for k, v in material_spec.items() if k not in ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")}
     spec["stabilisation"] = 0.0
-    angles = []
+    angles = {"rising": [], "falling": []}
     for a in alphas:
         res = driver.plane_strain(make_material(spec, alpha_deg=float(a)), p0_kPa=p0_kPa, alpha_deg=float(a),
                                   axial_strain=0.05, steps=400)
         onset = res.metadata["bifurcation"]
-        angles.append(np.nan if onset is None else onset["band_deg"])
-    return np.asarray(alphas, dtype=float), np.asarray(angles)
+        for family, values in angles.items():
+            values.append(np.nan if onset is None else onset[f"{family}_deg"])
+    return np.asarray(alphas, dtype=float), {family: np.asarray(v) for family, v in angles.items()}
 
 
 GROUPS: dict[str, Group] = {

@@ -231,10 +231,21 @@ def _summary(tag: str, res) -> str:
         onset = res.metadata["bifurcation"]
         bits.append("elliptic throughout (no band by Rice's condition)" if onset is None else
                     f"a band can form from eps_a = {onset['eps_a']:.4g} (q13 = {onset['q13_kPa']:.4g} kPa), "
-                    f"inclined {onset['band_deg']:.1f} deg to the sigma3 axis")
+                    f"inclined {onset['band_deg']:.1f} deg to the sigma3 axis" + _family(onset))
     if not res.completed:
         bits.append("STOPPED EARLY")
     return ", ".join(bits)
+
+
+def _family(onset: dict) -> str:
+    """Which family of bands the onset is in, and the other family's nearest band."""
+    family = onset.get("family")
+    if family is None:
+        return ""
+    if family == "both":
+        return " (rising and falling alike)"
+    other = "falling" if family == "rising" else "rising"
+    return f" ({family}; the nearest {other} band {onset[other + '_deg']:.1f} deg)"
 
 
 def _plot(runs, path: Path, title: str) -> Path:

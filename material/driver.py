@@ -923,21 +923,38 @@ def _bifurcation(res: ElementResult) -> dict | None:
     acoustic tensor is nearest to singular), and the onset: the first row past it (indicator below
     -:data:`material.localisation.ONSET`), its axial strain and q13, and the band's inclination at the last
     elliptic row folded into 0..90 deg (the two mirror bands of a symmetric specimen are one). ``None``
-    where the path stays elliptic."""
+    where the path stays elliptic.
+
+    Each family of bands also has its own columns, ``rice_rising_indicator`` / ``rice_rising_deg`` (bands
+    rising toward +x, toward which the driver tilts the deposition axis) and ``rice_falling_...``, and the
+    onset names both at the last elliptic row (``rising_deg``, ``falling_deg``) and the ``family`` that
+    forms first (``"both"`` where the two are mirror images, as at alpha = 0 and 90 deg): with a tilted
+    bedding the two arms of an X are not symmetric, and a boundary-value problem's arms are compared each
+    with its own (docs/regularisation.md, section 4)."""
     from material.localisation import ONSET, ellipticity
 
-    loc = ellipticity(res.tangent, plane=(0, 2), resolution_deg=0.25)
+    loc = ellipticity(res.tangent, plane=(0, 2), resolution_deg=0.25, families=True)
     res.add_column("rice_indicator", loc["indicator"], "Rice's localisation indicator of the step's tangent, "
                    "min over band normals in the x-z plane of det Q / (|Q|/sqrt 2)^2 [-] (< 0: a band can form)")
     res.add_column("rice_band_deg", loc["band_deg"], "inclination from x (the sigma3 axis) of the band nearest to "
                    "forming [deg]")
+    folded = {"rising": loc["rising_band_deg"], "falling": 180.0 - loc["falling_band_deg"]}
+    for family, sense in (("rising", "rising toward +x"), ("falling", "falling toward +x")):
+        res.add_column(f"rice_{family}_indicator", loc[f"{family}_indicator"],
+                       f"Rice's indicator over the {family} bands only ({sense}) [-]")
+        res.add_column(f"rice_{family}_deg", np.round(np.where(folded[family] == 180.0, 0.0, folded[family]), 9),
+                       f"inclination from x of the {family} band nearest to forming, folded into 0..90 [deg]")
     lost = np.flatnonzero(loc["indicator"][1:] < -ONSET)
     if lost.size == 0:
         return None
     i = int(lost[0]) + 1
     band = float(loc["band_deg"][i - 1])
+    rising, falling = float(loc["rising_indicator"][i - 1]), float(loc["falling_indicator"][i - 1])
+    mirror = abs(rising - falling) <= 1e-9 * max(abs(rising), abs(falling), 1e-300)
     return {"row": i, "eps_a": float(res["eps_a"][i]), "q13_kPa": float(res["q13_kPa"][i]),
-            "band_deg": min(band, 180.0 - band)}
+            "band_deg": round(min(band, 180.0 - band), 9),
+            "family": "both" if mirror else ("rising" if rising < falling else "falling"),
+            "rising_deg": float(res["rice_rising_deg"][i - 1]), "falling_deg": float(res["rice_falling_deg"][i - 1])}
 
 
 def true_triaxial(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0, b: float = 0.5,

@@ -108,7 +108,7 @@ def _det(Q: np.ndarray) -> np.ndarray:
             + Q[..., 0, 2] * (Q[..., 1, 0] * Q[..., 2, 1] - Q[..., 1, 1] * Q[..., 2, 0]))
 
 
-def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5) -> dict[str, np.ndarray]:
+def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5, *, families: bool = False) -> dict[str, np.ndarray]:
     """Rice's condition on N tangents (N, 3, 3, 3, 3) (see the module docstring).
 
     ``plane`` = (i, j): normals and jumps in the plane of axes i, j (plane strain); ``None``: normals over a
@@ -117,22 +117,39 @@ def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5) -> dict[str,
     (:func:`band_normals`), and for ``plane=None`` ``normal_elevation_deg`` (N,). Points are taken in blocks
     of about 2^17 / (number of normals), so memory stays near 2^17 acoustic tensors (10 MB) whatever N.
     A point has lost ellipticity where its indicator is below -:data:`ONSET`.
+
+    ``families=True`` (a plane only) also returns the least indicator and its band over each family of
+    orientations: ``rising_indicator`` and ``rising_band_deg`` over bands inclined 0..90 deg from e_i
+    (rising toward +e_i), ``falling_indicator`` and ``falling_band_deg`` over 90..180 deg (the horizontal
+    and the vertical band belong to both). A law with mirror symmetry about the e_j axis gives both families
+    the same indicator at mirror angles; a tilted bedding does not, and then the two arms of an X in a
+    boundary-value problem can be compared each with its own family.
     """
     D = _check_tangent(tangent)
+    if families and plane is None:
+        raise ValueError("families = True needs a plane (i, j): over a hemisphere the bands have no rising and "
+                         "falling families")
     normals, band, elevation = band_normals(plane, resolution_deg)
     axes = list(_check_plane(plane)) if plane is not None else [0, 1, 2]
     d = len(axes)
-    k_min = np.empty(D.shape[0], dtype=int)
-    value = np.empty(D.shape[0])
+    subsets = {"": np.arange(band.size)}
+    if families:
+        subsets["rising_"] = np.flatnonzero(band <= 90.0)
+        subsets["falling_"] = np.flatnonzero((band >= 90.0) | (band == 0.0))
+    k_min = {name: np.empty(D.shape[0], dtype=int) for name in subsets}
+    value = {name: np.empty(D.shape[0]) for name in subsets}
     step = max(2**17 // normals.shape[0], 1)
     for start in range(0, D.shape[0], step):
         Q = _acoustic(D[start:start + step], normals)[:, :, axes][:, :, :, axes]
         size = np.sqrt(np.einsum("pkim,pkim->pk", Q, Q) / d)
         ratio = _det(Q) / np.where(size > 0.0, size, np.inf) ** d
-        k = np.argmin(ratio, axis=1)
-        k_min[start:start + step] = k
-        value[start:start + step] = ratio[np.arange(k.size), k]
-    out = {"indicator": value, "band_deg": band[k_min]}
+        for name, subset in subsets.items():
+            k = subset[np.argmin(ratio[:, subset], axis=1)]
+            k_min[name][start:start + step] = k
+            value[name][start:start + step] = ratio[np.arange(k.size), k]
+    out = {}
+    for name in subsets:
+        out.update({f"{name}indicator": value[name], f"{name}band_deg": band[k_min[name]]})
     if plane is None:
-        out["normal_elevation_deg"] = elevation[k_min]
+        out["normal_elevation_deg"] = elevation[k_min[""]]
     return out

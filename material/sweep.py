@@ -442,6 +442,7 @@ def element(out, test: str = "triaxial", material=None, **driver_kwargs) -> dict
             break
     if "bifurcation" in res.metadata:  # the plane-strain test: Rice's onset (NaN where the path stays elliptic)
         onset = res.metadata["bifurcation"] or {}
-        summary.update({f"bifurcation_{k}": float(onset.get(k, np.nan)) for k in ("eps_a", "q13_kPa", "band_deg")})
+        summary.update({f"bifurcation_{k}": float(onset.get(k, np.nan))
+                        for k in ("eps_a", "q13_kPa", "band_deg", "rising_deg", "falling_deg")})
     summary.update(completed=bool(res.completed), stop_reason=res.message or "")
     return summary

@@ -45,6 +45,23 @@ def test_associated_j2_plasticity_in_plane_strain_localises_at_zero_hardening_in
     assert abs(np.linalg.det(Q)) <= 1e-9 * np.linalg.norm(Q) ** 2
 
 
+def test_each_family_of_bands_has_its_own_nearest_band():
+    """``families=True``: the rising (0..90 deg) and the falling (90..180 deg) bands each with their least
+    indicator. The softening von Mises point of the test above with its principal axes turned by 10 deg
+    about z: its two 45-degree bands turn to 55 and 145 deg, each the nearest of its family, with the same
+    indicator (the point is symmetric about its own axes), and the least of the two is the overall one."""
+    c, s = np.cos(np.radians(10.0)), np.sin(np.radians(10.0))
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    N = R @ np.diag([1.0, -1.0, 0.0]) @ R.T / np.sqrt(2.0)
+    out = ellipticity(_plastic(N, N, -10.0), resolution_deg=0.25, families=True)
+    assert out["rising_band_deg"][0] == pytest.approx(55.0, abs=0.3)
+    assert out["falling_band_deg"][0] == pytest.approx(145.0, abs=0.3)
+    assert out["rising_indicator"][0] == pytest.approx(out["falling_indicator"][0], rel=1e-6)
+    assert out["indicator"][0] == min(out["rising_indicator"][0], out["falling_indicator"][0]) < 0.0
+    with pytest.raises(ValueError, match="families = True needs a plane"):
+        ellipticity(_plastic(N, N, -10.0), plane=None, families=True)
+
+
 def test_non_associated_flow_localises_while_still_hardening():
     """Rudnicki & Rice (1975): with a dilatancy below the friction, a band forms at a positive hardening
     modulus; with associated flow the same hardening keeps the point elliptic. Drucker-Prager directions
@@ -108,6 +125,16 @@ def test_plane_strain_bifurcation_of_the_softening_sand_lies_between_roscoe_and_
             assert abs(i - peak) <= 2
         else:
             assert onset["q13_kPa"] < 0.95 * res["q13_kPa"][peak] and i < peak
+        # each family of bands on its own: at alpha = 0 the law is mirror-symmetric about the vertical, so the
+        # rising and the falling family are one; at alpha = 30 the rising one forms first (measured: 56.75 deg,
+        # indicator 1.2e-4 at the last elliptic row) while the falling one is far from it (56.0 deg, 0.027)
+        rising, falling = res["rice_rising_indicator"][i - 1], res["rice_falling_indicator"][i - 1]
+        if alpha == 0.0:
+            assert onset["family"] == "both" and rising == pytest.approx(falling, rel=1e-9)
+            assert onset["rising_deg"] == onset["falling_deg"] == onset["band_deg"]
+        else:
+            assert onset["family"] == "rising" and onset["rising_deg"] == onset["band_deg"]
+            assert onset["falling_deg"] == pytest.approx(56.0, abs=0.5) and falling > 100.0 * rising > 0.0
         phi, psi = _angles_at(res, i)
         assert psi > 0.0  # dilating
         assert 45.0 + psi / 2 < onset["band_deg"] < 45.0 + phi / 2
