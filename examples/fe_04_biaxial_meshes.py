@@ -92,6 +92,11 @@ def main(argv=None) -> dict:
                          "band from the weak zone reaches the free face below the top platen only if tan(theta) < "
                          "H/W - 1/3: 2 bounds it below 59 deg (the finer meshes then form an X at 34-39 deg), 3 "
                          "leaves room for the Coulomb angle (docs/regularisation.md, section 4)")
+    ap.add_argument("--weak-zone-at", type=float, default=WEAK_ZONE_HEIGHT * 2.0, metavar="Y",
+                    help="height of the weak zone's centre above the bottom platen / W (default 1/6: the zone "
+                         "x < W/6, y < W/3); it must lie below the top, Y < --height-ratio. Moving it tests "
+                         "whether the trigger sets the band (docs/regularisation.md, section 4); give each "
+                         "position its own --out")
     ap.add_argument("--axial-strain", type=float, default=0.06)
     ap.add_argument("--steps", type=int, default=240, help="nominal load steps")
     ap.add_argument("--stabilisation", type=float, default=0.1,
@@ -143,7 +148,8 @@ def study(args) -> list[Run]:
     with_changes(load_preset("ottawa_c109"), changes)  # an unknown key or a value out of range: its message here
     material = {"preset": "ottawa_c109", "stabilisation": args.stabilisation, "set": changes}
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
-              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": WEAK_ZONE_HEIGHT * 2.0 / args.height_ratio, "weak_zone_size": WEAK_ZONE_SIZE,
+              "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": args.weak_zone_at / args.height_ratio,
+              "weak_zone_size": WEAK_ZONE_SIZE,
               "platens": args.platens, "element_aspect": args.element_aspect,
               "height_ratio": args.height_ratio}
     if args.width != 0.05:  # only then, so that a study run before the option resumes as it was
@@ -151,6 +157,9 @@ def study(args) -> list[Run]:
     if args.order != 1:  # likewise
         fields["order"] = args.order
     back_stress = args.back_stress
+    if not 0.0 < args.weak_zone_at < args.height_ratio:
+        raise ValueError(f"--weak-zone-at = {args.weak_zone_at!r}: allowed 0 < Y < --height-ratio "
+                         f"({args.height_ratio:g}), the weak zone's centre inside the specimen's left face")
     for name, value in (("--length", args.length), ("--back-stress H", back_stress[0]),
                         ("--back-stress L", back_stress[1]), ("--width", args.width)):
         if not (np.isfinite(value) and value > 0):
@@ -163,7 +172,7 @@ def study(args) -> list[Run]:
         for n in sorted(args.resolutions, reverse=True):
             for variant in args.variants:
                 tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha,
-                           args.order)
+                           args.order, args.weak_zone_at)
                 target = {"case": "biaxial", "fields": {**fields, "resolution": n, "alpha_deg": alpha},
                           "material": laws[variant]}
                 if args.easy_steps is not None:  # only then, so that a study run before the option resumes as it was
@@ -174,11 +183,13 @@ def study(args) -> list[Run]:
 
 
 def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0,
-         back_stress=(1000.0, 0.006), alpha: float = 0.0, order: int = 1) -> str:
+         back_stress=(1000.0, 0.006), alpha: float = 0.0, order: int = 1,
+         weak_zone_at: float = WEAK_ZONE_HEIGHT * 2.0) -> str:
     suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm",
               "back_stress": f"_back_stress_{back_stress[0]:g}kPa_{1e3 * back_stress[1]:g}mm"}
     shape = (("" if order == 1 else f"_order_{order}") + ("" if aspect == 1.0 else f"_aspect_{aspect:g}")
-             + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W"))
+             + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W")
+             + ("" if weak_zone_at == WEAK_ZONE_HEIGHT * 2.0 else f"_weak_zone_at_{weak_zone_at:g}W"))
     return f"resolution_{n}" + shape + suffix[variant] + ("" if alpha == 0.0 else f"_alpha_{alpha:g}")
 
 

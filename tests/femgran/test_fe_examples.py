@@ -151,6 +151,29 @@ def test_fe_04_refuses_a_back_stress_out_of_range(tmp_path, load_example, capsys
     assert not (tmp_path / "sweep.json").exists()
 
 
+def test_fe_04_moves_the_weak_zone_and_refuses_one_outside_the_specimen(tmp_path, load_example, capsys):
+    """--weak-zone-at Y puts the weak zone's centre Y W above the bottom (the run's weak_zone_height is
+    Y / --height-ratio, its folder says where); the default keeps the study's folders and fields."""
+    import json
+
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    with pytest.raises(SystemExit) as stop:
+        fe_04.main(["--weak-zone-at", "3", "--height-ratio", "3", "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "--weak-zone-at = 3.0: allowed 0 < Y < --height-ratio (3)" in capsys.readouterr().err
+    assert not (tmp_path / "sweep.json").exists()
+    args = ["--resolutions", "6", "--variants", "regularised", "--axial-strain", "0.002", "--steps", "2",
+            "--height-ratio", "3"]
+    fe_04.main(args + ["--weak-zone-at", "0.5", "--out", str(tmp_path / "moved")])
+    fe_04.main(args + ["--out", str(tmp_path / "default")])
+    (moved,) = (tmp_path / "moved").glob("resolution_*")
+    (default,) = (tmp_path / "default").glob("resolution_*")
+    assert moved.name == "resolution_6_height_3W_weak_zone_at_0.5W" and default.name == "resolution_6_height_3W"
+    sweep = {name: json.loads((tmp_path / name / "sweep.json").read_text()) for name in ("moved", "default")}
+    heights = {name: [r["kwargs"]["fields"]["weak_zone_height"] for r in s["runs"]] for name, s in sweep.items()}
+    assert heights == {"moved": [pytest.approx(0.5 / 3)], "default": [1.0 / 18.0]}
+
+
 def test_fe_04_takes_cpa_changes_and_the_width_from_the_command_line(tmp_path, load_example, capsys):
     """--set changes the study's sand and --width the specimen; both reach the run. With eta_c_ratio=0 (no
     compaction) the specimen dilates from the start and is stronger at 1 % (measured: q 377.7 against
