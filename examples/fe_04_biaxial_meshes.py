@@ -134,7 +134,7 @@ def main(argv=None) -> dict:
     rows = collect(out)
     _plot(rows, out / "q_vs_eps_a_meshes.png")
     if len({r["alpha_deg"] for r in rows}) > 1:
-        _plot_alpha(rows, out / "band_vs_alpha.png", runs[0].kwargs["material"])
+        _plot_alpha(rows, out / "band_vs_alpha.png", runs[0].kwargs["material"], runs[0].kwargs["fields"]["p0_kPa"])
     if args.alphas == [0.0]:
         return {(int(r["values"]["resolution"]), r["values"]["variant"]): r["summary"] for r in result.records}
     return {(int(r["values"]["resolution"]), r["values"]["variant"], r["values"]["alpha_deg"]): r["summary"]
@@ -391,13 +391,14 @@ def _describe(name: str, b: dict) -> str:
                    f"{1e3 * b['section_m']:.1f} mm, contrast {b['contrast']:.2g})")
 
 
-def _plot_alpha(rows, path, material_spec: dict | None = None):
+def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 100.0):
     """The band angle against the deposition angle, one line per variant and mesh, in the first window of
     0.5 % axial strain after the peak (circles: the band as it forms) and in the last (squares), with the
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
     zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
-    increment (triangles, where there is one), and, for ``material_spec`` (the study's sand), Rice's onset on
-    the plane-strain element path for the rising and the falling bands (:func:`femgran.figures.rice_onset_angles`);
+    increment (triangles, where there is one), and, for ``material_spec`` (the study's sand) at its lateral
+    stress ``p0_kPa``, Rice's onset on the plane-strain element path for the rising and the falling bands
+    (:func:`femgran.figures.rice_onset_angles`);
     and beside it, for the finest mesh of the first variant, the deviatoric strain increment from the peak to
     the end of each run. Prints each run's two windows and Rice's angles."""
     import matplotlib
@@ -450,7 +451,7 @@ def _plot_alpha(rows, path, material_spec: dict | None = None):
         if material_spec is not None:  # the law's own bands, each family (the X's arms need not be mirror images)
             from femgran.figures import rice_onset_angles
 
-            angles, onset = rice_onset_angles(material_spec, float(sel[0].get("p0_kPa", 100.0)), alphas=tuple(a))
+            angles, onset = rice_onset_angles(material_spec, float(p0_kPa), alphas=tuple(a))
             for family, style in (("falling", "-"), ("rising", "--")):
                 print(f"Rice's onset on the element path, {family} bands: "
                       + ", ".join(f"alpha {g:g}: {v:.2f} deg" for g, v in zip(angles, onset[family])), flush=True)

@@ -357,14 +357,16 @@ def rice_onset_angles(material_spec: dict, p0_kPa: float, alphas=tuple(range(0, 
     """The band angle at the onset of localisation of the study's sand on the plane-strain element path
     (:func:`material.driver.plane_strain`, Rice's condition): the rate-independent local law (no step
     stabilisation, no gradient, no back stress: the first keeps the algorithmic tangent elliptic, the others
-    add a length the element does not have), 400 steps to 5 % (the same to 0.25 deg with 1600; docs/regularisation.md, section 4).
+    add a length the element does not have), 400 steps to 5 % (the same to 0.25 deg with 1600;
+    docs/regularisation.md, section 4).
     Returns (alphas, {"rising": angles [deg], "falling": angles [deg]}): each family's band nearest to
     forming at the last elliptic row (the driver tilts the bedding toward +x, as the biaxial case does), NaN
     where the path stays elliptic."""
     from material import driver
     from material.factory import make_material
 
-    spec = {k: v for k, v in material_spec.items() if k not in ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")}
+    lengths = ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")
+    spec = {k: v for k, v in material_spec.items() if k not in lengths}
     spec["stabilisation"] = 0.0
     angles = {"rising": [], "falling": []}
     for a in alphas:

@@ -108,7 +108,8 @@ def _det(Q: np.ndarray) -> np.ndarray:
             + Q[..., 0, 2] * (Q[..., 1, 0] * Q[..., 2, 1] - Q[..., 1, 1] * Q[..., 2, 0]))
 
 
-def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5, *, families: bool = False) -> dict[str, np.ndarray]:
+def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5, *,
+                families: bool = False) -> dict[str, np.ndarray]:
     """Rice's condition on N tangents (N, 3, 3, 3, 3) (see the module docstring).
 
     ``plane`` = (i, j): normals and jumps in the plane of axes i, j (plane strain); ``None``: normals over a
