@@ -133,7 +133,7 @@ def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5, *,
     normals, band, elevation = band_normals(plane, resolution_deg)
     axes = list(_check_plane(plane)) if plane is not None else [0, 1, 2]
     d = len(axes)
-    subsets = {"": np.arange(band.size)}
+    subsets = {"": None}  # all normals: no copy of the ratios
     if families:
         subsets["rising_"] = np.flatnonzero(band <= 90.0)
         subsets["falling_"] = np.flatnonzero((band >= 90.0) | (band == 0.0))
@@ -145,7 +145,7 @@ def ellipticity(tangent, plane=(0, 1), resolution_deg: float = 0.5, *,
         size = np.sqrt(np.einsum("pkim,pkim->pk", Q, Q) / d)
         ratio = _det(Q) / np.where(size > 0.0, size, np.inf) ** d
         for name, subset in subsets.items():
-            k = subset[np.argmin(ratio[:, subset], axis=1)]
+            k = np.argmin(ratio, axis=1) if subset is None else subset[np.argmin(ratio[:, subset], axis=1)]
             k_min[name][start:start + step] = k
             value[name][start:start + step] = ratio[np.arange(k.size), k]
     out = {}
