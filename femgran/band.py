@@ -154,6 +154,15 @@ class Band:
         """Whether the angle is the 0.5 deg search's, the centre-line fit not taken (:attr:`angle_method`)."""
         return self.angle_method.startswith("line integral")
 
+    def height_at(self, x: float) -> float:
+        """The height y [m] at which the band's centre line passes the abscissa ``x`` [m], e.g. where the band
+        meets a side of the specimen (NaN for a vertical band or :meth:`none`). A height outside the specimen
+        means the band leaves it through a platen instead."""
+        dx, dy = self.direction
+        if not (np.isfinite(dx) and abs(dx) > 1e-12):
+            return float("nan")
+        return float(self.centre[1] + (float(x) - self.centre[0]) * dy / dx)
+
     @property
     def rising(self) -> bool:
         """Whether the band's direction rises along x (0 to 90 deg from the x axis; else it falls)."""
@@ -422,7 +431,10 @@ and a window longer than the whole post-peak path is that path). In each, the in
 
     Returns a :class:`material.table.Table`, one row per window: ``eps_from``, ``eps_to``, ``q_from_kPa``,
     ``q_to_kPa``, and for the stronger arm and the other one (``conjugate_``) ``angle_deg``, ``thickness_m``,
-    ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`).
+    ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`),
+    the centre line's point ``centre_x_m``, ``centre_y_m`` and the heights ``left_y_m``, ``right_y_m`` at which it
+    meets the specimen's left and right sides (:meth:`Band.height_at` at the extreme abscissae of the cells'
+    corners: a height below 0 or above the specimen's top means the arm runs into a platen).
     ``femgran band RUN_FOLDER`` writes it as ``band_history.csv``.
     """
     from material.table import Table
@@ -433,12 +445,14 @@ and a window longer than the whole post-peak path is that path). In each, the in
     folder = Path(run_folder)
     w_eps, w_q, paths, start = written_steps(folder, name)
     cache = {}
+    sides = [0.0, 0.0]  # the abscissae of the specimen's left and right sides [m], from the cells read
 
     def cells(i):
         if i not in cache:
             corners, strain = read_cells(paths[i])
             cache.clear()  # windows are consecutive: keep the last step only
             cache[i] = (corners.mean(axis=1), strain, float(np.ptp(corners, axis=1).max()))
+            sides[:] = float(corners[..., 0].min()), float(corners[..., 0].max())
         return cache[i]
 
     table = Table(metadata={"run_folder": folder.name, "window": w, "intensity":
@@ -459,7 +473,9 @@ and a window longer than the whole post-peak path is that path). In each, the in
             row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
                         f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
                         f"{prefix}rising": float(b.rising), f"{prefix}peak_width_m": b.peak_width_m,
-                        f"{prefix}section_m": b.section_m})
+                        f"{prefix}section_m": b.section_m, f"{prefix}centre_x_m": float(b.centre[0]),
+                        f"{prefix}centre_y_m": float(b.centre[1]), f"{prefix}left_y_m": b.height_at(sides[0]),
+                        f"{prefix}right_y_m": b.height_at(sides[1])})
         table.append(row)
         i0 = i1
     return table

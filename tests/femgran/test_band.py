@@ -179,6 +179,11 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
     assert np.allclose(windows["eps_from"][1:], windows["eps_to"][:-1])  # consecutive windows
     assert np.allclose(np.diff(windows["eps_from"]), 0.01, atol=0.05 / 60)  # of 0.01, to one step
     assert windows["eps_from"][0] == pytest.approx(whole["eps_from"][0]) and windows["eps_to"][-1] > 0.045
+    # each arm's heights where it meets the sides x = 0 and W = 0.05 m lie W tan(angle) apart, through its centre
+    rise = np.abs(windows["right_y_m"] - windows["left_y_m"])
+    assert np.allclose(rise, 0.05 * np.tan(np.radians(windows["angle_deg"])), rtol=1e-9)
+    between = (windows["centre_y_m"] - windows["left_y_m"]) / (windows["right_y_m"] - windows["left_y_m"])
+    assert np.allclose(between, windows["centre_x_m"] / 0.05, rtol=1e-9)
     with pytest.raises(ValueError, match="window = -0.01"):
         band_history(tmp_path / "band", -0.01)
     with pytest.raises(FileNotFoundError, match="no biaxial.pvd"):
@@ -206,6 +211,13 @@ def test_both_arms_of_an_x_are_measured_with_their_own_thickness():
     assert first.thickness_m == pytest.approx(0.008, rel=0.2) and second.thickness_m == pytest.approx(0.005, rel=0.2)
     n = np.array([-second.direction[1], second.direction[0]])
     assert abs((np.asarray(second.centre) - (0.03, 0.045)) @ n) < h / 2
+    # where each arm meets the sides x = 0 and 0.05: the 57 deg arm through (0.025, 0.05) at y = 0.0115 and
+    # 0.0885, the 135 deg arm through (0.03, 0.045) at 0.075 and 0.025 (to the angles' and centres' errors)
+    assert first.height_at(0.0) == pytest.approx(0.05 - 0.025 * np.tan(np.radians(57.0)), abs=1.5 * h)
+    assert first.height_at(0.05) == pytest.approx(0.05 + 0.025 * np.tan(np.radians(57.0)), abs=1.5 * h)
+    assert second.height_at(0.0) == pytest.approx(0.075, abs=1.5 * h)
+    assert second.height_at(0.05) == pytest.approx(0.025, abs=1.5 * h)
+    assert np.isnan(measure_arms(POINTS, 0.0 * w, element_size=h)[0].height_at(0.0))  # no band: no height
     single = 0.2 + _band(60.0, 0.006) + 0.05 * rng.standard_normal(len(POINTS))
     one, other = measure_arms(POINTS, single, element_size=h)
     assert one.localised and not other.localised
