@@ -12,8 +12,15 @@ spreads over a width set by l instead of by the element size.
 
 :class:`GradientDiscretisation` is a :class:`femgran.assembly.Discretisation` whose unknown vector is
 [u (the displacement DOFs, numbered as before); ebar (linear Lagrange nodal values)]. The ebar rows are the
-weak form of the equation above scaled by a modulus s [kPa] (so that they are forces, and one tolerance
-measures both fields):
+weak form of the equation above scaled by s = E / l [kPa/m], the law's Young's modulus over the length, so
+that they are forces as the displacement rows are (kN/m in plane strain, kN in 3D; the weak form itself is
+kPa m^2 in plane strain): the solver's one tolerance and its line search's merit then weigh both fields alike
+whatever the size of the problem, and a body twice as large with twice the length is the same problem at twice
+the scale, its Newton iterates included (``tests/femgran/test_gradient.py``). With s = E the ebar rows carried
+one more power of length: on the shear-band study's specimen (50 mm wide, l = 6 mm) they counted about h = 2 mm
+times less than the displacement rows for the same strain error, and the same run twice as large took other
+line-search steps and cut-backs and another path after the peak (peak q 504.0 against 502.2 kPa on 6 elements
+across). The equation:
 
     r_ebar = s [ (M + l^2 D) ebar - int phi e ],      M = int phi phi,   D = int grad(phi) . grad(phi),
 
@@ -139,7 +146,8 @@ class GradientDiscretisation(Discretisation):
     length : float
         The internal length l [m], > 0 (the material's ``nonlocal_length``).
     scale : float
-        The modulus s [kPa] > 0 the ebar equation is multiplied by (e.g. the material's Young's modulus).
+        The factor s [kPa/m] > 0 the ebar equation is multiplied by: the material's Young's modulus over the
+        length, E / l, makes its rows forces (module docstring; :func:`discretisation_for`).
 
     Attributes
     ----------
@@ -420,13 +428,14 @@ class BackStressDiscretisation(Discretisation):
 def discretisation_for(material, mesh, order: int = 1, volumetric: str = "standard") -> Discretisation:
     """The discretisation ``material`` needs on ``mesh``: the displacement alone, or, for a gradient-enhanced
     law (one with a ``nonlocal_length``, :mod:`material.base`), the displacement and the nodal nonlocal field
-    (:class:`GradientDiscretisation`, its equation scaled by the law's Young's modulus E), or
-    for a law with a gradient back stress (a ``back_stress_length``) the displacement and the nonlocal plastic
-    strain tensor (:class:`BackStressDiscretisation`, scaled the same way)."""
+    (:class:`GradientDiscretisation`, its equation scaled by the law's Young's modulus over the length, E / l,
+    so that its rows are forces: module docstring), or for a law with a gradient back stress (a
+    ``back_stress_length``) the displacement and the nonlocal plastic strain tensor
+    (:class:`BackStressDiscretisation`, scaled the same way with its length l_b)."""
     back = getattr(material, "back_stress_length", None)
     if back is not None:
-        return BackStressDiscretisation(mesh, order, volumetric, length=back, scale=float(material.E))
+        return BackStressDiscretisation(mesh, order, volumetric, length=back, scale=float(material.E) / float(back))
     length = getattr(material, "nonlocal_length", None)
     if length is None:
         return Discretisation(mesh, order, volumetric)
-    return GradientDiscretisation(mesh, order, volumetric, length=length, scale=float(material.E))
+    return GradientDiscretisation(mesh, order, volumetric, length=length, scale=float(material.E) / float(length))

@@ -384,3 +384,36 @@ def test_a_biaxial_run_resumed_after_its_peak_measures_the_same_band(tmp_path):
     assert np.array_equal(resumed.u, whole.u)
     for key in ("band_angle_deg", "band_thickness_m", "band_contrast", "peak_q_kPa"):
         assert getattr(resumed, key) == getattr(whole, key)
+
+
+def test_a_biaxial_specimen_twice_as_large_with_twice_the_length_is_the_same_problem_at_twice_the_scale(tmp_path):
+    """The CPA law has no length in space (its lengths turn slip into strain at a point), so with the implicit
+    gradient the only lengths are the specimen's and l: W = 100 mm with l = 12 mm is W = 50 mm with l = 6 mm at
+    twice the scale. The ebar rows scaled by E / l make the coupled residual forces, and the solver takes the
+    same Newton iterates, line-search steps and cut-backs on both: q identical to round-off at every step past
+    the peak, the band twice as thick at the same angle. With the rows scaled by E alone (before 2026-12-07)
+    the two runs parted at the first step after the peak (measured: 14 against 12 steps, peak q 504.0 against
+    502.2 kPa)."""
+    from femgran.solver import History
+    from femgran.sweep import case_target
+
+    material = {"preset": "ottawa_c109", "stabilisation": 0.01,
+                "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}}
+    fields = {"p0_kPa": 100.0, "axial_strain": 0.03, "steps": 12, "imperfection": 0.0, "weak_zone": 0.1,
+              "weak_zone_height": 1.0 / 18.0, "weak_zone_size": 1.0 / 3.0, "platens": "rough", "height_ratio": 3.0,
+              "resolution": 6}
+    runs = {}
+    for width, length in ((0.05, 0.006), (0.1, 0.012)):
+        folder = tmp_path / f"w{width}"
+        runs[width] = (case_target(folder, "biaxial", {**fields, "width_m": width},
+                                   {**material, "nonlocal_length": length}),
+                       History.read_csv(folder / "history.csv"))
+    (small, h_small), (large, h_large) = runs[0.05], runs[0.1]
+    assert small["completed"] and large["completed"] and small["steps"] == large["steps"]
+    q_small, q_large = np.asarray(h_small["q_kPa"]), np.asarray(h_large["q_kPa"])
+    assert q_small.size == q_large.size and q_small.argmax() < q_small.size - 3  # past the peak
+    assert np.abs(q_large - q_small).max() < 1e-9 * q_small.max()
+    assert np.array_equal(np.asarray(h_small["iterations"]), np.asarray(h_large["iterations"]))
+    assert small["localised"] and large["localised"]
+    assert large["band_thickness_m"] == pytest.approx(2.0 * small["band_thickness_m"], rel=1e-6)
+    assert large["band_angle_deg"] == pytest.approx(small["band_angle_deg"], abs=1e-6)
