@@ -17,10 +17,10 @@ that they are forces as the displacement rows are (kN/m in plane strain, kN in 3
 kPa m^2 in plane strain): the solver's one tolerance and its line search's merit then weigh both fields alike
 whatever the size of the problem, and a body twice as large with twice the length is the same problem at twice
 the scale, its Newton iterates included (``tests/femgran/test_gradient.py``). With s = E the ebar rows carried
-one more power of length: on the shear-band study's specimen (50 mm wide, l = 6 mm) they counted about h = 2 mm
-times less than the displacement rows for the same strain error, and the same run twice as large took other
-line-search steps and cut-backs and another path after the peak (peak q 504.0 against 502.2 kPa on 6 elements
-across). The equation:
+one more power of length: for the same error of strain and of ebar a node's ebar row was h / (1 m) times its
+displacement row (now h / l), 1/500 on the shear-band study's elements (h = 2 mm), and the same run twice as
+large took other line-search steps and cut-backs and another path after the peak (peak q 504.0 against
+502.2 kPa on 6 elements across). The equation:
 
     r_ebar = s [ (M + l^2 D) ebar - int phi e ],      M = int phi phi,   D = int grad(phi) . grad(phi),
 
