@@ -1,28 +1,36 @@
-"""The direct solver's fill-reducing ordering on the solver's own matrices.
+"""The direct solver's ordering and pivoting on the solver's own matrices.
 
-Runs each case until the Newton solver's ``nth`` linear solve, takes that matrix and right-hand side,
-and solves them with SuperLU under scipy's default column ordering (COLAMD) and under the solver's
-:data:`femgran.solver.DIRECT_ORDERING`, printing the best of ``--repeat`` times, the fill of L + U, the
-time ratio and the difference of the solutions. The cases:
+Three SuperLU factorisations: scipy's default (COLAMD ordering, partial pivoting), the solver's ordering
+:data:`femgran.solver.DIRECT_ORDERING` with partial pivoting, and the solver's own (that ordering with the
+diagonal preferred as pivot, :data:`femgran.solver.DIAG_PIVOT_THRESHOLD`). Runs each case until the Newton
+solver's ``nth`` linear solve, takes that matrix and right-hand side and solves them all three ways, printing
+the best of ``--repeat`` times, the fill of L + U and the relative residual of each, and the time ratios
+against scipy's default. The cases:
 
 * ``footing``: the default strip footing (resolution 3) on the plane-strain Drucker-Prager cone;
+* ``cpa_footing``: the same footing on the thesis sand (``femgran footing --alpha 0``'s material);
 * ``band24`` / ``band48``: the quadratic shear-band study of ``examples/fe_04_biaxial_meshes.py`` with the
   implicit gradient (l = 6 mm, H = 3 W, 24 / 48 elements across: the coupled displacement-nonlocal
   system, structurally symmetric but not symmetric);
+* ``gradient``: the CPA run of ``benchmarks/gradient.py`` with the implicit gradient (12 linear elements
+  across, 923 DOFs, to 4.2 %): the coupled system through the whole softening (take ``--nth 400``);
 * ``triaxial``: the 3D specimen with rough platens (``femgran triaxial``'s default mesh).
 
-With ``--whole-run N`` it also runs each case's first N steps once with each ordering (in this process,
-one after the other) and prints the wall times and their ratio: what the ordering saves a whole run, the
-material updates and assemblies included.
+With ``--whole-run N`` it also runs each case's first N steps once with each factorisation (in this
+process, one after the other) and prints, for each, the wall time, the time in the direct solves, their
+number, the largest relative residual and the largest fill: what the factorisation saves a whole run, the
+material updates and assemblies included, and that the runs took the same Newton iterations.
 
-    python benchmarks/linear_solve.py [--cases footing band24 band48 triaxial] [--repeat 3] [--nth 3]
+    python benchmarks/linear_solve.py [--cases footing cpa_footing band24 band48 gradient triaxial] [--repeat 3] [--nth 3]
                                       [--whole-run N]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -42,11 +50,21 @@ def _band(n: int):
     return case, BAND_MATERIAL
 
 
+def _gradient():
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from gradient import _setups
+
+    laws, case = _setups("cpa", None, None)
+    return case, laws["gradient"]
+
+
 CASES = {
     "footing": lambda: (Footing(resolution=3), {"law": "drucker_prager", "E_kPa": 6000.0, "nu": 0.3,
                                                 "cohesion_kPa": 0.0, "friction_deg": 30.0}),
+    "cpa_footing": lambda: (Footing(resolution=3, alpha_deg=0.0), {"preset": "ottawa_c109"}),
     "band24": lambda: _band(24),
     "band48": lambda: _band(48),
+    "gradient": _gradient,
     "triaxial": lambda: (Triaxial(platens="rough"), {"preset": "ottawa_c109", "stabilisation": 0.1}),
 }
 
@@ -57,6 +75,20 @@ class _Taken(BaseException):
     def __init__(self, K, b):
         super().__init__()
         self.K, self.b = K, b
+
+
+#: name: (ordering, splu keywords); the first is the baseline of the ratios, the last the solver's own.
+FACTORISATIONS = {
+    "COLAMD": ("COLAMD", {}),
+    "MMD": (fsolver.DIRECT_ORDERING, {}),
+    "MMD+diag": (fsolver.DIRECT_ORDERING, {"diag_pivot_thresh": fsolver.DIAG_PIVOT_THRESHOLD,
+                                           "options": {"SymmetricMode": True}}),
+}
+
+
+def _factor(K, name: str):
+    ordering, keywords = FACTORISATIONS[name]
+    return spla.splu(K.tocsc(), permc_spec=ordering, **keywords)
 
 
 def take_matrix(name: str, nth: int):
@@ -81,27 +113,39 @@ def take_matrix(name: str, nth: int):
     raise RuntimeError(f"{name}: fewer than {nth} linear solves")
 
 
-def whole_run(name: str, steps: int, ordering: str) -> float:
-    """Wall time of case ``name``'s first ``steps`` steps with the direct solver's ``ordering``."""
+def whole_run(name: str, steps: int, factorisation: str) -> dict:
+    """Case ``name``'s first ``steps`` steps with the direct solves by ``factorisation``: wall time, the
+    solves' time, their number, largest relative residual and largest fill."""
     case, material = CASES[name]()
-    saved = fsolver.DIRECT_ORDERING
-    fsolver.DIRECT_ORDERING = ordering
+    seen = []
+
+    def solving(K, b):
+        t0 = time.perf_counter()
+        lu = _factor(K, factorisation)
+        x = lu.solve(b)
+        seen.append((time.perf_counter() - t0, np.linalg.norm(K @ x - b) / np.linalg.norm(b), lu.L.nnz + lu.U.nnz))
+        return x
+
+    original = fsolver.direct_solve
+    fsolver.direct_solve = solving
     try:
         t0 = time.perf_counter()
         run(case, material, solver={"linear_solver": "superlu"}, output=Output(None), max_steps=steps)
-        return time.perf_counter() - t0
+        wall = time.perf_counter() - t0
     finally:
-        fsolver.DIRECT_ORDERING = saved
+        fsolver.direct_solve = original
+    a = np.array(seen)
+    return {"wall": wall, "solves": a[:, 0].sum(), "n": len(a), "residual": a[:, 1].max(), "fill": a[:, 2].max()}
 
 
-def _time(K, b, ordering: str, repeat: int):
+def _time(K, b, factorisation: str, repeat: int):
     best = np.inf
     for _ in range(repeat):
         t0 = time.perf_counter()
-        lu = spla.splu(K, permc_spec=ordering)
+        lu = _factor(K, factorisation)
         x = lu.solve(b)
         best = min(best, time.perf_counter() - t0)
-    return best, lu.L.nnz + lu.U.nnz, x
+    return best, lu.L.nnz + lu.U.nnz, np.linalg.norm(K @ x - b) / np.linalg.norm(b)
 
 
 def main(argv=None) -> None:
@@ -110,23 +154,25 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--nth", type=int, default=3, help="take the matrix of this linear solve of each run")
     ap.add_argument("--whole-run", type=int, default=0, metavar="N", help="also time the first N steps of each run "
-                    "with either ordering")
+                    "with each factorisation")
     args = ap.parse_args(argv)
-    new = fsolver.DIRECT_ORDERING
-    print(f"{'case':<10}{'DOFs':>8}{'nnz':>10}{'COLAMD [s]':>12}{new + ' [s]':>20}{'fill ratio':>12}"
-          f"{'time ratio':>12}{'|dx|/|x|':>10}")
+    names = list(FACTORISATIONS)
+    print("time [ms] / fill of L + U / relative residual of each factorisation; time ratio against " + names[0])
     for name in args.cases:
         K, b = take_matrix(name, args.nth)
-        t_old, fill_old, x_old = _time(K, b, "COLAMD", args.repeat)
-        t_new, fill_new, x_new = _time(K, b, new, args.repeat)
-        diff = np.abs(x_new - x_old).max() / np.abs(x_old).max()
-        print(f"{name:<10}{K.shape[0]:>8}{K.nnz:>10}{t_old:>12.4f}{t_new:>20.4f}{fill_new / fill_old:>12.2f}"
-              f"{t_old / t_new:>12.2f}{diff:>10.1e}")
+        rows = {f: _time(K, b, f, args.repeat) for f in names}
+        base = rows[names[0]][0]
+        print(f"{name} ({K.shape[0]} DOFs, {K.nnz} entries, solve {args.nth}):")
+        for f, (t, fill, res) in rows.items():
+            print(f"  {f:<10}{t * 1e3:10.2f}{fill:>11}{res:>10.1e}   ratio {base / t:5.2f}")
     if args.whole_run:
-        print(f"\nthe first {args.whole_run} steps of each run [s]:")
+        print(f"\nthe first {args.whole_run} steps of each run: wall [s], the direct solves [s], their number, "
+              f"largest relative residual, largest fill")
         for name in args.cases:
-            t_old, t_new = (whole_run(name, args.whole_run, o) for o in ("COLAMD", new))
-            print(f"{name:<10} COLAMD {t_old:8.1f}   {new} {t_new:8.1f}   ratio {t_old / t_new:5.2f}")
+            for f in names:
+                r = whole_run(name, args.whole_run, f)
+                print(f"  {name:<12}{f:<10}{r['wall']:8.1f}{r['solves']:8.2f}{r['n']:6d}{r['residual']:10.1e}"
+                      f"{r['fill']:>10.0f}")
 
 
 if __name__ == "__main__":

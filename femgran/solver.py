@@ -278,10 +278,29 @@ class Solution:
 #: Drucker-Prager footing).
 DIRECT_ORDERING = "MMD_AT_PLUS_A"
 
+#: SuperLU's threshold for a diagonal pivot, in its symmetric mode: the diagonal entry of a column is the pivot
+#: unless it is smaller than this fraction of the column's largest entry (then the largest is). The matrices
+#: here are structurally symmetric with a nonzero diagonal, the case for which SuperLU's guide pairs the
+#: symmetric mode and a small threshold with the ordering on A^T + A; partial pivoting (threshold 1) leaves
+#: the ordering's pivots wherever an off-diagonal entry is larger. Measured on whole runs (``python
+#: benchmarks/linear_solve.py --whole-run``; the same Newton iterations and steps either way, largest relative
+#: residual of a solve 2e-14 against 9e-14): on the coupled gradient system of the shear-band benchmark
+#: (``benchmarks/gradient.py --law cpa``) partial pivoting turned away from the diagonal once the law softened
+#: and tripled the fill (up to 320k against 71k entries, 10.6 ms against 3.3 ms per solve, 4.8 s against 1.5
+#: s of a 26 s run); on the CPA footing 7 % faster solves, on the crack band 19 %.
+DIAG_PIVOT_THRESHOLD = 0.01
+
 
 def direct_solve(K: sp.spmatrix, b: np.ndarray) -> np.ndarray:
-    """K x = b by SuperLU (partial pivoting) with the ordering :data:`DIRECT_ORDERING`."""
-    return spla.spsolve(K.tocsc(), b, permc_spec=DIRECT_ORDERING)
+    """K x = b by SuperLU with the ordering :data:`DIRECT_ORDERING` and the diagonal preferred as pivot
+    (:data:`DIAG_PIVOT_THRESHOLD`). An exactly singular K gives NaN (as ``scipy.sparse.linalg.spsolve``
+    does), which the Newton solver reports as a failed linear solve."""
+    try:
+        lu = spla.splu(K.tocsc(), permc_spec=DIRECT_ORDERING, diag_pivot_thresh=DIAG_PIVOT_THRESHOLD,
+                       options={"SymmetricMode": True})
+    except RuntimeError:  # "Factor is exactly singular"
+        return np.full(K.shape[0], np.nan)
+    return lu.solve(np.asarray(b, dtype=float))
 
 
 def _preconditioner(K, method, near_nullspace, blocks=None):

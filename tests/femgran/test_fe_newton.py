@@ -348,6 +348,31 @@ def test_linear_solvers_agree():
         np.testing.assert_allclose(sol.u, ref.u, rtol=1e-6, atol=1e-9)
 
 
+def test_the_direct_solve_pivots_off_a_small_diagonal_and_reports_a_singular_matrix_as_nan():
+    """The diagonal is preferred as pivot only while it is at least DIAG_PIVOT_THRESHOLD of its column's
+    largest entry. Here the minimum-degree ordering takes the tiny diagonal's column first; taking that
+    diagonal as pivot (threshold 0) gives x_0 = 0 instead of 1."""
+    import scipy.sparse as sp
+
+    from femgran.solver import DIAG_PIVOT_THRESHOLD, direct_solve
+
+    assert 0.0 < DIAG_PIVOT_THRESHOLD < 1.0
+    tiny = sp.csr_matrix(np.array([[1e-20, 1, 0, 0], [1, 1, 1, 1], [0, 1, 3, 1], [0, 1, 1, 3.0]]))
+    np.testing.assert_allclose(direct_solve(tiny, tiny @ np.ones(4)), np.ones(4), rtol=1e-14)
+    rng = np.random.default_rng(3)
+    n = 60
+    A = sp.random(n, n, density=0.1, random_state=rng, format="csr")
+    A = (A + A.T + sp.eye(n)).tolil()  # structurally symmetric, as the solver's matrices
+    A[0, 0] = 0.0
+    A[0, 1] = A[1, 0] = 2.0
+    A = A.tocsr()
+    x_true = rng.standard_normal(n)
+    x = direct_solve(A, A @ x_true)
+    assert np.linalg.norm(x - x_true) / np.linalg.norm(x_true) < 1e-11
+    singular = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
+    assert np.isnan(direct_solve(singular, np.array([1.0, 1.0]))).all()
+
+
 def test_element_size_reaches_a_regularised_material():
     """The solver hands each point's element size to a material whose initial_state takes it (the
     crack-band scaling of CPA softening) and leaves other materials alone."""
