@@ -274,7 +274,9 @@ class BackStressDiscretisation(Discretisation):
     The two fewer fields take a quarter of the unknowns and their couplings out of the linear system:
     ``python benchmarks/gradient.py --law cpa`` (idle machine) measured 1.79 times the crack band's time
     with four fields, 3.57 with six, with the rows scaled by E; scaled by E / l_b (:func:`discretisation_for`)
-    1.61 and 2.29 in two runs on a busy machine, where the rows scaled by E gave 1.59 beside them.
+    1.61 and 2.29 in two runs on a busy machine, where the rows scaled by E gave 1.59 beside them; since
+    the direct solver prefers the diagonal as pivot (``femgran.solver.DIAG_PIVOT_THRESHOLD``) 1.14, 1.64 and
+    1.60 in three runs on a busy machine.
     """
 
     nonlocal_name = "nonlocal_plastic_strain"
