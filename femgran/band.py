@@ -434,7 +434,10 @@ and a window longer than the whole post-peak path is that path). In each, the in
     ``contrast``, ``localised`` (1 / 0), ``rising`` (1 / 0), ``peak_width_m`` and ``section_m`` (:class:`Band`),
     the centre line's point ``centre_x_m``, ``centre_y_m`` and the heights ``left_y_m``, ``right_y_m`` at which it
     meets the specimen's left and right sides (:meth:`Band.height_at` at the extreme abscissae of the cells'
-    corners: a height below 0 or above the specimen's top means the arm runs into a platen).
+    corners: a height below 0 or above the specimen's top means the arm runs into a platen), and the
+    mobilised friction and the dilatancy inside the arm, ``friction_deg`` (the stress at the window's end)
+    and ``dilatancy_deg`` (the strain increment over the window), of :func:`in_band_state`: the arm's own
+    Coulomb (45 + phi / 2) and Roscoe (45 + psi / 2) angles as it runs, where the run's peak gives them once.
     ``femgran band RUN_FOLDER`` writes it as ``band_history.csv``.
     """
     from material.table import Table
@@ -449,9 +452,9 @@ and a window longer than the whole post-peak path is that path). In each, the in
 
     def cells(i):
         if i not in cache:
-            corners, strain = read_cells(paths[i])
+            corners, (strain, stress) = read_cell_fields(paths[i], ("strain", "stress"))
             cache.clear()  # windows are consecutive: keep the last step only
-            cache[i] = (corners.mean(axis=1), strain, float(np.ptp(corners, axis=1).max()))
+            cache[i] = (corners.mean(axis=1), strain, float(np.ptp(corners, axis=1).max()), stress)
             sides[:] = float(corners[..., 0].min()), float(corners[..., 0].max())
         return cache[i]
 
@@ -465,11 +468,13 @@ and a window longer than the whole post-peak path is that path). In each, the in
         i1 = int(np.argmin(np.abs(w_eps - min(target, w_eps[-1]))))
         if i1 <= i0:
             break
-        x, e0, _ = cells(i0)
-        _, e1, size = cells(i1)
+        x, e0, _, _ = cells(i0)
+        _, e1, size, stress = cells(i1)
         band, other = measure_arms(x, deviatoric_intensity(e1 - e0), element_size=size)
         row = {"eps_from": w_eps[i0], "eps_to": w_eps[i1], "q_from_kPa": w_q[i0], "q_to_kPa": w_q[i1]}
         for prefix, b in (("", band), ("conjugate_", other)):
+            friction, dilatancy, _ = in_band_state(x, b, stress, e1 - e0, tuple(sides))
+            row.update({f"{prefix}friction_deg": friction, f"{prefix}dilatancy_deg": dilatancy})
             row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
                         f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
                         f"{prefix}rising": float(b.rising), f"{prefix}peak_width_m": b.peak_width_m,
@@ -517,11 +522,48 @@ def written_steps(run_folder, name: str = "biaxial"):
 def read_cells(vtu_path):
     """(the corners' in-plane coordinates (n_cells, n_corners, 2), the cell strain (n_cells, 3, 3)) of one
     VTU file of a plane run (its cell field ``strain``, element averages)."""
+    corners, (strain,) = read_cell_fields(vtu_path, ("strain",))
+    return corners, strain
+
+
+def read_cell_fields(vtu_path, names=("strain", "stress")):
+    """(the corners' in-plane coordinates (n_cells, n_corners, 2), [each cell tensor field of ``names``
+    (n_cells, 3, 3)]) of one VTU file of a plane run (element averages). A missing field raises an error
+    naming the file and the fields it has."""
     import meshio
 
     m = meshio.read(vtu_path)
+    missing = [n for n in names if n not in m.cell_data]
+    if missing:
+        raise ValueError(f"{vtu_path}: no cell field(s) {missing}; it has {sorted(m.cell_data)}")
     corners = m.points[m.cells[0].data][:, :, :2]
-    return corners, np.asarray(m.cell_data["strain"][0], dtype=float).reshape(-1, 3, 3)
+    return corners, [np.asarray(m.cell_data[n][0], dtype=float).reshape(-1, 3, 3) for n in names]
+
+
+def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, float]) -> tuple[float, float, int]:
+    """The mobilised friction and the dilatancy inside a band: (friction [deg], dilatancy [deg], cells).
+
+    The cells whose centre lies within half the band's thickness of its centre line and in the middle half
+    of the specimen's width (``sides``: the abscissae of its left and right faces), away from a trigger on
+    a face and from the faces themselves. From their mean stress (in the plane, tension positive) the
+    friction sin(phi) = (s3 - s1) / -(s1 + s3); from their mean strain increment ``d_strain`` over the
+    window the dilatancy sin(psi) = (d1 + d3) / (d3 - d1) (d1 the most compressive principal increment; the
+    elastic part included). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies."""
+    nan = float("nan")
+    if not np.isfinite(band.thickness_m):
+        return nan, nan, 0
+    c = np.asarray(centres, dtype=float)
+    d = np.asarray(band.direction, dtype=float)
+    across = (c - np.asarray(band.centre)) @ np.array([-d[1], d[0]])
+    x0, x1 = sides
+    sel = (np.abs(across) <= 0.5 * band.thickness_m) & (np.abs(c[:, 0] - 0.5 * (x0 + x1)) <= 0.25 * (x1 - x0))
+    if not sel.any():
+        return nan, nan, 0
+    s1, s3 = np.linalg.eigvalsh(np.asarray(stress)[sel][:, :2, :2].mean(axis=0))
+    d1, d3 = np.linalg.eigvalsh(np.asarray(d_strain)[sel][:, :2, :2].mean(axis=0))
+    friction = np.degrees(np.arcsin((s3 - s1) / -(s1 + s3))) if s1 + s3 < 0.0 else nan
+    dilatancy = np.degrees(np.arcsin((d1 + d3) / (d3 - d1))) if d3 > d1 else nan
+    return float(friction), float(dilatancy), int(sel.sum())
 
 
 def deviatoric_intensity(d_strain) -> np.ndarray:

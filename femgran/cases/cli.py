@@ -437,19 +437,20 @@ def _band_history(args) -> int:
     table = band_history(args.run_folder, args.window, name=args.name)
     path = table.write_csv(Path(args.run_folder) / "band_history.csv")
     print(f"{'axial strain [%]':>18} {'q [kPa]':>15}   band: angle [deg], thickness [mm], contrast, "
-          f"heights where it meets the left / right side [mm]   | other arm")
+          f"heights where it meets the left / right side [mm], friction / dilatancy inside it [deg]   | other arm")
     for r in table.rows():
         arms = []
         for prefix in ("", "conjugate_"):
             if r[prefix + "localised"]:
                 arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
                             f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f} "
-                            f"{1e3 * r[prefix + 'left_y_m']:6.1f} / {1e3 * r[prefix + 'right_y_m']:6.1f}")
+                            f"{1e3 * r[prefix + 'left_y_m']:6.1f} / {1e3 * r[prefix + 'right_y_m']:6.1f} "
+                            f"{r[prefix + 'friction_deg']:5.1f} / {r[prefix + 'dilatancy_deg']:5.1f}")
             elif is_zone(r[prefix + "contrast"], r[prefix + "peak_width_m"], r[prefix + "section_m"]):
                 zone = f"zone {1e3 * r[prefix + 'peak_width_m']:.1f} of {1e3 * r[prefix + 'section_m']:.1f}"
-                arms.append(f"{zone:>42}")
+                arms.append(f"{zone:>56}")
             else:
-                arms.append(f"{'no band':>42}")
+                arms.append(f"{'no band':>56}")
         print(f"{100 * r['eps_from']:8.2f} -{100 * r['eps_to']:6.2f}   {r['q_from_kPa']:6.1f} -{r['q_to_kPa']:6.1f}   "
               f"{arms[0]}   | {arms[1]}")
     print(f"-> {path}")

@@ -277,3 +277,30 @@ def test_a_symmetric_x_on_the_tall_quadratic_specimen_is_read_symmetric():
         assert first.rising and not second.rising and first.localised and second.localised
         assert first.angle_deg == pytest.approx(rising_deg, abs=0.3)
         assert second.angle_deg == pytest.approx(falling_deg, abs=0.3)
+
+
+def test_in_band_state_reads_friction_and_dilatancy_inside_the_band_only():
+    """Cells inside a band at 60 deg carry a stress of 30 deg of friction and a strain increment of -19.47 deg
+    of dilatancy; the cells outside it, and the band's cells near the faces (x < W/4 or x > 3W/4), carry
+    others that would move the means if they were taken."""
+    from femgran.band import Band, in_band_state
+
+    W = 0.05
+    x, y = np.meshgrid(np.linspace(0.0005, W - 0.0005, 50), np.linspace(0.0005, 0.15 - 0.0005, 150))
+    centres = np.column_stack([x.ravel(), y.ravel()])
+    a = np.radians(60.0)
+    band = Band(60.0, (np.cos(a), np.sin(a)), (0.025, 0.075), 0.01, 10.0, True, (np.zeros(0),) * 3)
+    across = (centres - [0.025, 0.075]) @ [-np.sin(a), np.cos(a)]
+    inside = np.abs(across) <= 0.005
+    middle = np.abs(centres[:, 0] - 0.025) <= 0.0125
+    stress = np.tile(-50.0 * np.eye(3), (len(centres), 1, 1))
+    stress[inside & middle] = np.diag([-100.0, -300.0, -150.0])  # s3 = -100, s1 = -300: sin(phi) = 1/2
+    stress[inside & ~middle] = np.diag([-100.0, -100.0, -100.0])
+    d = np.zeros((len(centres), 3, 3))
+    d[inside & middle] = np.diag([0.002, -0.004, 0.0])  # (d1 + d3) / (d3 - d1) = -1/3
+    d[inside & ~middle] = np.diag([0.004, -0.004, 0.0])
+    friction, dilatancy, n = in_band_state(centres, band, stress, d, (0.0, W))
+    assert friction == pytest.approx(30.0, abs=1e-9)
+    assert dilatancy == pytest.approx(np.degrees(np.arcsin(-1.0 / 3.0)), abs=1e-9)
+    assert n == int((inside & middle).sum()) > 100
+    assert np.isnan(in_band_state(centres, Band.none(), stress, d, (0.0, W))[0])
