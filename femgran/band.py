@@ -435,8 +435,9 @@ and a window longer than the whole post-peak path is that path). In each, the in
     the centre line's point ``centre_x_m``, ``centre_y_m`` and the heights ``left_y_m``, ``right_y_m`` at which it
     meets the specimen's left and right sides (:meth:`Band.height_at` at the extreme abscissae of the cells'
     corners: a height below 0 or above the specimen's top means the arm runs into a platen), and the
-    mobilised friction and the dilatancy inside the arm, ``friction_deg`` (the stress at the window's end)
-    and ``dilatancy_deg`` (the strain increment over the window), of :func:`in_band_state`: the arm's own
+    mobilised friction and the dilatancy inside the arm, ``friction_deg`` (the stress at the window's end;
+    NaN for a series without the cell field ``stress``) and ``dilatancy_deg`` (the strain increment over the
+    window), of :func:`in_band_state`: the arm's own
     Coulomb (45 + phi / 2) and Roscoe (45 + psi / 2) angles as it runs, where the run's peak gives them once.
     ``femgran band RUN_FOLDER`` writes it as ``band_history.csv``.
     """
@@ -452,7 +453,7 @@ and a window longer than the whole post-peak path is that path). In each, the in
 
     def cells(i):
         if i not in cache:
-            corners, (strain, stress) = read_cell_fields(paths[i], ("strain", "stress"))
+            corners, (strain, stress) = read_cell_fields(paths[i], ("strain",), optional=("stress",))
             cache.clear()  # windows are consecutive: keep the last step only
             cache[i] = (corners.mean(axis=1), strain, float(np.ptp(corners, axis=1).max()), stress)
             sides[:] = float(corners[..., 0].min()), float(corners[..., 0].max())
@@ -526,10 +527,10 @@ def read_cells(vtu_path):
     return corners, strain
 
 
-def read_cell_fields(vtu_path, names=("strain", "stress")):
-    """(the corners' in-plane coordinates (n_cells, n_corners, 2), [each cell tensor field of ``names``
-    (n_cells, 3, 3)]) of one VTU file of a plane run (element averages). A missing field raises an error
-    naming the file and the fields it has."""
+def read_cell_fields(vtu_path, names=("strain", "stress"), optional=()):
+    """(the corners' in-plane coordinates (n_cells, n_corners, 2), [each cell tensor field of ``names``, then
+    of ``optional``, (n_cells, 3, 3)]) of one VTU file of a plane run (element averages). A missing field of
+    ``names`` raises an error naming the file and the fields it has; a missing one of ``optional`` is None."""
     import meshio
 
     m = meshio.read(vtu_path)
@@ -537,7 +538,8 @@ def read_cell_fields(vtu_path, names=("strain", "stress")):
     if missing:
         raise ValueError(f"{vtu_path}: no cell field(s) {missing}; it has {sorted(m.cell_data)}")
     corners = m.points[m.cells[0].data][:, :, :2]
-    return corners, [np.asarray(m.cell_data[n][0], dtype=float).reshape(-1, 3, 3) for n in names]
+    return corners, [np.asarray(m.cell_data[n][0], dtype=float).reshape(-1, 3, 3) if n in m.cell_data else None
+                     for n in (*names, *optional)]
 
 
 def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, float]) -> tuple[float, float, int]:
@@ -548,7 +550,8 @@ def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, f
     a face and from the faces themselves. From their mean stress (in the plane, tension positive) the
     friction sin(phi) = (s3 - s1) / -(s1 + s3); from their mean strain increment ``d_strain`` over the
     window the dilatancy sin(psi) = (d1 + d3) / (d3 - d1) (d1 the most compressive principal increment; the
-    elastic part included). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies."""
+    elastic part included). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies; the
+    friction NaN where ``stress`` is None (a series written without it)."""
     nan = float("nan")
     if not np.isfinite(band.thickness_m):
         return nan, nan, 0
@@ -559,9 +562,11 @@ def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, f
     sel = (np.abs(across) <= 0.5 * band.thickness_m) & (np.abs(c[:, 0] - 0.5 * (x0 + x1)) <= 0.25 * (x1 - x0))
     if not sel.any():
         return nan, nan, 0
-    s1, s3 = np.linalg.eigvalsh(np.asarray(stress)[sel][:, :2, :2].mean(axis=0))
+    friction = nan
+    if stress is not None:
+        s1, s3 = np.linalg.eigvalsh(np.asarray(stress)[sel][:, :2, :2].mean(axis=0))
+        friction = np.degrees(np.arcsin((s3 - s1) / -(s1 + s3))) if s1 + s3 < 0.0 else nan
     d1, d3 = np.linalg.eigvalsh(np.asarray(d_strain)[sel][:, :2, :2].mean(axis=0))
-    friction = np.degrees(np.arcsin((s3 - s1) / -(s1 + s3))) if s1 + s3 < 0.0 else nan
     dilatancy = np.degrees(np.arcsin((d1 + d3) / (d3 - d1))) if d3 > d1 else nan
     return float(friction), float(dilatancy), int(sel.sum())
 

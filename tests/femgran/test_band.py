@@ -304,3 +304,6 @@ def test_in_band_state_reads_friction_and_dilatancy_inside_the_band_only():
     assert dilatancy == pytest.approx(np.degrees(np.arcsin(-1.0 / 3.0)), abs=1e-9)
     assert n == int((inside & middle).sum()) > 100
     assert np.isnan(in_band_state(centres, Band.none(), stress, d, (0.0, W))[0])
+    # a series written without the stress (older runs): the dilatancy still, the friction NaN
+    friction, dilatancy, _ = in_band_state(centres, band, None, d, (0.0, W))
+    assert np.isnan(friction) and dilatancy == pytest.approx(np.degrees(np.arcsin(-1.0 / 3.0)), abs=1e-9)
