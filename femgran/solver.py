@@ -283,11 +283,12 @@ DIRECT_ORDERING = "MMD_AT_PLUS_A"
 #: here are structurally symmetric with a nonzero diagonal, the case for which SuperLU's guide pairs the
 #: symmetric mode and a small threshold with the ordering on A^T + A; partial pivoting (threshold 1) leaves
 #: the ordering's pivots wherever an off-diagonal entry is larger. Measured on whole runs (``python
-#: benchmarks/linear_solve.py --whole-run``; the same Newton iterations and steps either way, largest relative
-#: residual of a solve 2e-14 against 9e-14): on the coupled gradient system of the shear-band benchmark
-#: (``benchmarks/gradient.py --law cpa``) partial pivoting turned away from the diagonal once the law softened
-#: and tripled the fill (up to 320k against 71k entries, 10.6 ms against 3.3 ms per solve, 4.8 s against 1.5
-#: s of a 26 s run); on the CPA footing 7 % faster solves, on the crack band 19 %.
+#: benchmarks/linear_solve.py --cases gradient --whole-run 999`` and ``--cases footing cpa_footing --whole-run
+#: 40``; the same number of solves either way, so the same Newton path): on the coupled gradient system of
+#: the shear-band benchmark (``benchmarks/gradient.py --law cpa``, 453 solves) partial pivoting turned away
+#: from the diagonal once the law softened and quadrupled the fill (up to 319k against 76k entries of L + U),
+#: 4.60 s of direct solves against 1.27 s, largest relative residual 8.5e-14 against 2.1e-14; the first 40
+#: steps of the CPA footing 2.50 against 2.05 s of solves, of the Drucker-Prager footing 1.11 against 0.88 s.
 DIAG_PIVOT_THRESHOLD = 0.01
 
 
