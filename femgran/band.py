@@ -542,15 +542,27 @@ def read_cell_fields(vtu_path, names=("strain", "stress"), optional=()):
                      for n in (*names, *optional)]
 
 
+def mobilised_angles(sigma_1: float, sigma_3: float, d_eps_1: float, d_eps_3: float) -> tuple[float, float]:
+    """(friction, dilatancy) [deg] of a plane state, geotechnical convention (compression positive):
+    sin(phi) = (sigma_1 - sigma_3) / (sigma_1 + sigma_3) from the major and minor principal stresses, and
+    sin(psi) = -(d_eps_1 + d_eps_3) / (d_eps_1 - d_eps_3) from the principal strain increments along them
+    (dilation makes psi positive). NaN where a ratio is undefined (sigma_1 + sigma_3 <= 0, d_eps_1 = d_eps_3)."""
+    nan = float("nan")
+    phi = float(np.degrees(np.arcsin(np.clip((sigma_1 - sigma_3) / (sigma_1 + sigma_3), -1, 1)))) \
+        if sigma_1 + sigma_3 > 0.0 else nan
+    psi = float(np.degrees(np.arcsin(np.clip(-(d_eps_1 + d_eps_3) / (d_eps_1 - d_eps_3), -1, 1)))) \
+        if d_eps_1 != d_eps_3 else nan
+    return phi, psi
+
+
 def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, float]) -> tuple[float, float, int]:
     """The mobilised friction and the dilatancy inside a band: (friction [deg], dilatancy [deg], cells).
 
     The cells whose centre lies within half the band's thickness of its centre line and in the middle half
     of the specimen's width (``sides``: the abscissae of its left and right faces), away from a trigger on
-    a face and from the faces themselves. From their mean stress (in the plane, tension positive) the
-    friction sin(phi) = (s3 - s1) / -(s1 + s3); from their mean strain increment ``d_strain`` over the
-    window the dilatancy sin(psi) = (d1 + d3) / (d3 - d1) (d1 the most compressive principal increment; the
-    elastic part included). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies; the
+    a face and from the faces themselves. The friction from their mean stress (in the plane) and the
+    dilatancy from their mean strain increment ``d_strain`` over the window (the elastic part included), by
+    :func:`mobilised_angles` (``stress`` and ``d_strain`` tension positive, as the VTK fields). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies; the
     friction NaN where ``stress`` is None (a series written without it)."""
     nan = float("nan")
     if not np.isfinite(band.thickness_m):
@@ -562,13 +574,10 @@ def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, f
     sel = (np.abs(across) <= 0.5 * band.thickness_m) & (np.abs(c[:, 0] - 0.5 * (x0 + x1)) <= 0.25 * (x1 - x0))
     if not sel.any():
         return nan, nan, 0
-    friction = nan
-    if stress is not None:
-        s1, s3 = np.linalg.eigvalsh(np.asarray(stress)[sel][:, :2, :2].mean(axis=0))
-        friction = np.degrees(np.arcsin((s3 - s1) / -(s1 + s3))) if s1 + s3 < 0.0 else nan
-    d1, d3 = np.linalg.eigvalsh(np.asarray(d_strain)[sel][:, :2, :2].mean(axis=0))
-    dilatancy = np.degrees(np.arcsin((d1 + d3) / (d3 - d1))) if d3 > d1 else nan
-    return float(friction), float(dilatancy), int(sel.sum())
+    d1, d3 = np.linalg.eigvalsh(np.asarray(d_strain)[sel][:, :2, :2].mean(axis=0))  # d1: most compressive
+    s1, s3 = np.linalg.eigvalsh(np.asarray(stress)[sel][:, :2, :2].mean(axis=0)) if stress is not None else (nan, nan)
+    friction, dilatancy = mobilised_angles(-s1, -s3, -d1, -d3)
+    return friction, dilatancy, int(sel.sum())
 
 
 def deviatoric_intensity(d_strain) -> np.ndarray:

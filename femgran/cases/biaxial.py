@@ -50,7 +50,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from femgran.band import Band, deviatoric_intensity, measure_arms, measure_band
+from femgran.band import Band, deviatoric_intensity, measure_arms, measure_band, mobilised_angles
 from femgran.cases.base import Drainage, Output, Problem, case, param, run
 from femgran.cases.common import check_positive, check_steps, nodes_near, solver_options
 from femgran.solver import Dirichlet, PathControl
@@ -290,11 +290,8 @@ def _peak_and_band(sol, data: dict, d, p0: float, W: float, H: float, imp: float
     # increment at the first step within 1 % of it (on a plateau, where the dilatancy is still the peak's)
     q_max = float(np.nanmax(q))
     k = int(np.flatnonzero(q >= 0.99 * q_max)[0])
-    s1, s3 = q_max + p0, p0
-    phi = float(np.degrees(np.arcsin(np.clip((s1 - s3) / (s1 + s3), -1, 1))))
     k0, k1 = max(k - 1, 0), min(k + 1, len(q) - 1)
-    de1, de3 = e_a[k1] - e_a[k0], e_l[k1] - e_l[k0]
-    psi = float(np.degrees(np.arcsin(np.clip(-(de1 + de3) / (de1 - de3), -1, 1)))) if de1 != de3 else float("nan")
+    phi, psi = mobilised_angles(q_max + p0, p0, e_a[k1] - e_a[k0], e_l[k1] - e_l[k0])
     dstrain = np.asarray(sol.state["strain"]) - _PeakStrains.strain_at(data, k)
     gamma = deviatoric_intensity(dstrain)
     h_el = float(d.element_size().max())

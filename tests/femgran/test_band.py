@@ -307,3 +307,9 @@ def test_in_band_state_reads_friction_and_dilatancy_inside_the_band_only():
     # a series written without the stress (older runs): the dilatancy still, the friction NaN
     friction, dilatancy, _ = in_band_state(centres, band, None, d, (0.0, W))
     assert np.isnan(friction) and dilatancy == pytest.approx(np.degrees(np.arcsin(-1.0 / 3.0)), abs=1e-9)
+    # the same two formulas in the geotechnical convention, as the biaxial case's peak uses them
+    from femgran.band import mobilised_angles
+
+    phi, psi = mobilised_angles(300.0, 100.0, 0.004, -0.002)
+    assert phi == pytest.approx(30.0, abs=1e-12) and psi == pytest.approx(np.degrees(np.arcsin(-1 / 3)), abs=1e-12)
+    assert np.isnan(mobilised_angles(100.0, -100.0, 0.001, 0.001)).all()
