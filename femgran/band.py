@@ -562,8 +562,9 @@ def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, f
     of the specimen's width (``sides``: the abscissae of its left and right faces), away from a trigger on
     a face and from the faces themselves. The friction from their mean stress (in the plane) and the
     dilatancy from their mean strain increment ``d_strain`` over the window (the elastic part included), by
-    :func:`mobilised_angles` (``stress`` and ``d_strain`` tension positive, as the VTK fields). NaN and 0 cells where the band is :meth:`Band.none` or no cell qualifies; the
-    friction NaN where ``stress`` is None (a series written without it)."""
+    :func:`mobilised_angles` (``stress`` and ``d_strain`` tension positive, as the VTK fields). NaN and 0
+    cells where the band is :meth:`Band.none` or no cell qualifies; the friction NaN where ``stress`` is None
+    (a series written without it)."""
     nan = float("nan")
     if not np.isfinite(band.thickness_m):
         return nan, nan, 0
