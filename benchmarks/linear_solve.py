@@ -21,8 +21,8 @@ process, one after the other) and prints, for each, the wall time, the time in t
 number, the largest relative residual and the largest fill: what the factorisation saves a whole run, the
 material updates and assemblies included, and that the runs took the same Newton iterations.
 
-    python benchmarks/linear_solve.py [--cases footing cpa_footing band24 band48 gradient triaxial] [--repeat 3] [--nth 3]
-                                      [--whole-run N]
+    python benchmarks/linear_solve.py [--cases footing cpa_footing band24 band48 gradient triaxial]
+                                      [--repeat 3] [--nth 3] [--whole-run N]
 """
 
 from __future__ import annotations
