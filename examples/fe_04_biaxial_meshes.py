@@ -37,7 +37,8 @@ what the run aimed there from the start would give. ``meshes.csv`` and the plot 
 found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]
-        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--order 2] [--set KEY=VALUE ...]
+        [--back-stress H L] [--alphas 0 30 60 90] [--height-ratio 3] [--width W] [--order 2] [--rule R]
+        [--set KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from femgran.band import is_zone
 from femgran.solver import History
 from material.commandline import parse_set, with_changes
 from material.parameters import load_preset
+from material.planes import DEFAULT_RULE, available_rules, rule_info
 from material.sweep import Run, sweep
 from material.table import Table
 
@@ -105,6 +107,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--order", type=int, choices=(1, 2), default=1,
                     help="element order: 1 (Q1 B-bar, the study's) or 2 (quadratic displacement, the gradient's "
                          "field linear; docs/regularisation.md, section 4: the gradient band converges much faster)")
+    ap.add_argument("--rule", choices=sorted(available_rules()), default=DEFAULT_RULE,
+                    help="integration planes of the CPA law (material.planes; default %(default)s). equator-78 puts "
+                         "a plane every 5 deg about the out-of-plane axis; with the default's few planes there the "
+                         "arms of a band that ends on a free face turn below the Coulomb angle after the peak "
+                         "(docs/regularisation.md, section 4). A rule other than the default names the run folders")
     ap.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
                     help="change a CPA parameter on top of the study's (repeatable), e.g. eta_c_ratio=0 for "
                          "associated flow; the run folders' names do not show it, so give each setting its own "
@@ -147,6 +154,8 @@ def study(args) -> list[Run]:
                "residual_ratio": 0.65, **parse_set(args.set)}
     with_changes(load_preset("ottawa_c109"), changes)  # an unknown key or a value out of range: its message here
     material = {"preset": "ottawa_c109", "stabilisation": args.stabilisation, "set": changes}
+    if args.rule != DEFAULT_RULE:  # only then, so that a study run before the option resumes as it was
+        material["rule"] = args.rule
     fields = {"p0_kPa": 100.0, "alpha_deg": 0.0, "axial_strain": args.axial_strain, "steps": args.steps,
               "imperfection": 0.0, "weak_zone": 0.1, "weak_zone_height": args.weak_zone_at / args.height_ratio,
               "weak_zone_size": WEAK_ZONE_SIZE,
@@ -172,7 +181,7 @@ def study(args) -> list[Run]:
         for n in sorted(args.resolutions, reverse=True):
             for variant in args.variants:
                 tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha,
-                           args.order, args.weak_zone_at)
+                           args.order, args.weak_zone_at, args.rule)
                 target = {"case": "biaxial", "fields": {**fields, "resolution": n, "alpha_deg": alpha},
                           "material": laws[variant]}
                 if args.easy_steps is not None:  # only then, so that a study run before the option resumes as it was
@@ -184,12 +193,13 @@ def study(args) -> list[Run]:
 
 def _tag(n: int, variant: str, length: float, aspect: float = 1.0, height_ratio: float = 2.0,
          back_stress=(1000.0, 0.006), alpha: float = 0.0, order: int = 1,
-         weak_zone_at: float = WEAK_ZONE_HEIGHT * 2.0) -> str:
+         weak_zone_at: float = WEAK_ZONE_HEIGHT * 2.0, rule: str = DEFAULT_RULE) -> str:
     suffix = {"regularised": "", "unregularised": "_unregularised", "gradient": f"_gradient_{1e3 * length:g}mm",
               "back_stress": f"_back_stress_{back_stress[0]:g}kPa_{1e3 * back_stress[1]:g}mm"}
     shape = (("" if order == 1 else f"_order_{order}") + ("" if aspect == 1.0 else f"_aspect_{aspect:g}")
              + ("" if height_ratio == 2.0 else f"_height_{height_ratio:g}W")
-             + ("" if weak_zone_at == WEAK_ZONE_HEIGHT * 2.0 else f"_weak_zone_at_{weak_zone_at:g}W"))
+             + ("" if weak_zone_at == WEAK_ZONE_HEIGHT * 2.0 else f"_weak_zone_at_{weak_zone_at:g}W")
+             + ("" if rule == DEFAULT_RULE else f"_rule_{rule}"))
     return f"resolution_{n}" + shape + suffix[variant] + ("" if alpha == 0.0 else f"_alpha_{alpha:g}")
 
 
@@ -202,6 +212,15 @@ def _variant(folder: Path) -> str:
     if "_back_stress_" in name:
         return "back stress " + " ".join(name.split("_back_stress_")[1].split("_"))
     return "unregularised" if name.endswith("_unregularised") else "crack band"
+
+
+def _rule(folder: Path) -> str:
+    """The integration rule of a run folder, from its name (the default's runs do not name it)."""
+    name = folder.name.split("_alpha_")[0]
+    if "_rule_" not in name:
+        return DEFAULT_RULE
+    rule = name.split("_rule_")[1]
+    return next(r for r in sorted(available_rules(), key=len, reverse=True) if rule.startswith(r))
 
 
 def _say(rec) -> None:
@@ -242,9 +261,9 @@ def collect(out: Path) -> list[dict]:
         summary = json.loads((folder / "summary.json").read_text())
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n, order = int(params["resolution"]), int(params.get("order", 1))
-        variant = _variant(folder)
-        rows.append({"resolution": n, "variant": variant, "order": order,
-                     "series": variant if order == 1 else f"{variant}, quadratic elements",
+        variant, rule = _variant(folder), _rule(folder)
+        series = variant + ("" if order == 1 else ", quadratic elements") + ("" if rule == DEFAULT_RULE else f", {rule}")
+        rows.append({"resolution": n, "variant": variant, "order": order, "rule": rule, "series": series,
                      "alpha_deg": float(params.get("alpha_deg", 0.0)),
                      "folder": folder,
                      "element_size_mm": 1e3 * params["width_m"] / n, "history": h,
@@ -282,12 +301,13 @@ def collect(out: Path) -> list[dict]:
 
 
 def _series_columns(row) -> dict:
-    """The numeric columns that name a run's series (variant, element order, deposition angle) in the
-    study's tables."""
+    """The numeric columns that name a run's series (variant, element order, deposition angle, the number
+    of planes of its rule) in the study's tables."""
     variant = row["variant"]
     length = float(variant.split()[1][:-2]) if variant.startswith("gradient") else float("nan")
     back = variant.split()[2:] if variant.startswith("back stress") else ["nan", "nan"]
-    return {"order": row["order"], "alpha_deg": row["alpha_deg"], "crack_band": int(variant == "crack band"),
+    return {"order": row["order"], "alpha_deg": row["alpha_deg"], "planes": rule_info(row["rule"])["n_planes"],
+            "crack_band": int(variant == "crack band"),
             "gradient_length_mm (NaN: none)": length,
             "back_stress_modulus_kPa (NaN: none)": float(back[0].removesuffix("kPa")),
             "back_stress_length_mm (NaN: none)": float(back[1].removesuffix("mm"))}
