@@ -39,8 +39,13 @@ the principal axes. A rule with few normals on that ring misses the critical pla
 spacing, and the critical-plane law with an isotropic eta is then stronger than Mohr-Coulomb by up to 11 %
 (``bazant-oh-33``; 6 % with ``lebedev-110``, ``docs/cpa_law.md`` section 5.3). With 36 normals 5 deg apart
 on the ring the excess is below 0.7 % at every orientation, at 2.4 times the planes of the default rule
-(``tests/material/test_driver_cpa.py``). The extra ring points keep the degree: a ring of k equally spaced
-azimuths integrates every trigonometric polynomial of degree below k, and 72 > 14. The model attaches the planes to the material frame
+(``tests/material/test_driver_cpa.py``). The ring's spacing also sets how a shear band turns after the
+peak: with the default rule's normals 21-24 deg apart on the ring (in a biaxial specimen, slip lines at
+45 and 69.05 deg from the horizontal and none between), the arms of a band that form between them turn by
+7-10 deg as they soften; with ``equator-78`` they keep the angle they form at
+(``docs/regularisation.md``, section 4). The extra ring points keep the degree: a ring of k equally
+spaced azimuths integrates every trigonometric polynomial of degree below k, and 72 > 14. The model
+attaches the planes to the material frame
 (n_a = R n_a^ref, see :func:`rotate_normals`).
 """
 
