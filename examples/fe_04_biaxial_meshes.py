@@ -262,7 +262,8 @@ def collect(out: Path) -> list[dict]:
         status = json.loads((folder / "status.json").read_text()) if (folder / "status.json").is_file() else {}
         n, order = int(params["resolution"]), int(params.get("order", 1))
         variant, rule = _variant(folder), _rule(folder)
-        series = variant + ("" if order == 1 else ", quadratic elements") + ("" if rule == DEFAULT_RULE else f", {rule}")
+        series = (variant + ("" if order == 1 else ", quadratic elements")
+                  + ("" if rule == DEFAULT_RULE else f", {rule}"))
         rows.append({"resolution": n, "variant": variant, "order": order, "rule": rule, "series": series,
                      "alpha_deg": float(params.get("alpha_deg", 0.0)),
                      "folder": folder,
