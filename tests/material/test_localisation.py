@@ -143,6 +143,42 @@ def test_plane_strain_bifurcation_of_the_softening_sand_lies_between_roscoe_and_
     assert plain.metadata["bifurcation"] is None and plain["rice_indicator"].min() > 0.0
 
 
+def test_after_the_peak_the_law_keeps_its_band_angle_only_with_planes_every_5_degrees_about_the_out_of_plane_axis():
+    """The shear-band study's sand (associated, the FE runs' step stabilisation 0.01, alpha = 0) on the
+    plane-strain element path, Rice's condition over the first 1 % of axial strain after the peak: what turns
+    the free arms of the FE band with the default rule (docs/regularisation.md, section 4, "What turns the
+    free arms") is already in the law's tangent. Measured, 400 steps to 5 %:
+
+    * ``equator-78`` (a normal every 5 deg on the ring n3 = 0): both families at one angle (the law stays
+      mirror-symmetric), 64.5-67.75 deg, within 0.8 deg below Roscoe (65.30) and 0.95 deg above Coulomb
+      (66.81) of the element's own peak; the least indicator -0.024: the tangent softens gently.
+    * ``bazant-oh-33`` (the default; normals on that ring 21-24 deg apart): the indicator falls to -1.0 (a
+      strongly indefinite acoustic tensor, whose worst direction runs from 69 to 84 deg over the first
+      0.5 %), and then the families split by 6 deg, one locked at 69.0-69.25 deg (the plane at 69.05) while
+      the other falls to 63 deg."""
+    from material import driver
+    from material.factory import make_material
+
+    changes = {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}
+    found = {}
+    for rule in ("equator-78", "bazant-oh-33"):
+        spec = {"preset": "ottawa_c109", "stabilisation": 0.01, "set": changes, "rule": rule}
+        res = driver.plane_strain(make_material(spec), p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.05, steps=400)
+        ea, peak = res["eps_a"], int(np.argmax(res["q13_kPa"]))
+        phi, psi = _angles_at(res, peak)
+        after = (ea >= ea[peak]) & (ea <= ea[peak] + 0.01)
+        found[rule] = (res["rice_rising_deg"][after], res["rice_falling_deg"][after], res["rice_indicator"][after],
+                       45.0 + psi / 2.0, 45.0 + phi / 2.0)
+    rising, falling, indicator, roscoe, coulomb = found["equator-78"]
+    assert np.array_equal(rising, falling)
+    assert roscoe - 1.0 < rising.min() and rising.max() < coulomb + 1.25
+    assert indicator.min() > -0.05
+    rising, falling, indicator, roscoe, coulomb = found["bazant-oh-33"]
+    assert indicator.min() < -0.9 and max(rising.max(), falling.max()) > 80.0
+    assert np.abs(rising - falling).max() >= 5.0
+    assert min(rising.min(), falling.min()) < roscoe - 2.5
+
+
 def test_the_element_sweep_and_its_command_report_the_onset(tmp_path, capsys):
     """``material.sweep.element`` puts Rice's onset of a plane-strain test into the study's summary (NaN
     where the path stays elliptic), and ``femgran element plane-strain`` prints it."""
