@@ -31,8 +31,9 @@ each 0.5 % window after the peak against the finest mesh's, in that mesh's eleme
 (:mod:`material.sweep`):
 ``--jobs 2`` runs them two at a time on a local Dask cluster (one numba thread per worker),
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
-complete. The same command with a larger ``--axial-strain`` and ``--steps`` in proportion takes a
-finished study on to the new end: each run goes on from its last checkpoint, with the step it had, to
+complete, and a run stopped part-way (a worker killed: it cannot catch Ctrl-C) goes on from its last
+checkpoint, written every ``--checkpoint-every`` steps. The same command with a larger
+``--axial-strain`` and ``--steps`` in proportion takes a finished study on to the new end: each run goes on from its last checkpoint, with the step it had, to
 what the run aimed there from the start would give. ``meshes.csv`` and the plot collect every run folder
 found under ``--out``.
 
@@ -120,6 +121,10 @@ def main(argv=None) -> dict:
                     help="the solver's step grows only after N consecutive easy steps without a cut-back "
                          "(femgran.solver.SolverOptions.easy_steps; 2 saves 40 %% of the evaluations into the "
                          "peak; default: after every easy step, which a study run before the option resumes with)")
+    ap.add_argument("--checkpoint-every", type=int, default=10, metavar="N",
+                    help="a checkpoint every N converged steps of each run (0: only at its end). A run on a Dask "
+                         "worker cannot catch Ctrl-C or a kill: the same command again goes on from its last "
+                         "checkpoint (default %(default)s)")
     ap.add_argument("--jobs", type=int, default=1,
                     help="runs at a time (worker processes of a local Dask cluster, one numba thread each)")
     ap.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler to run on")
@@ -131,6 +136,8 @@ def main(argv=None) -> dict:
         args.stabilisation = 0.0
     if args.jobs < 1:
         ap.error(f"--jobs must be at least 1, got {args.jobs}")
+    if args.checkpoint_every < 0:
+        ap.error(f"--checkpoint-every must be 0 (only at the end) or more, got {args.checkpoint_every}")
     out = Path(args.out)
     try:
         runs = study(args)
@@ -183,7 +190,7 @@ def study(args) -> list[Run]:
                 tag = _tag(n, variant, args.length, args.element_aspect, args.height_ratio, back_stress, alpha,
                            args.order, args.weak_zone_at, args.rule)
                 target = {"case": "biaxial", "fields": {**fields, "resolution": n, "alpha_deg": alpha},
-                          "material": laws[variant]}
+                          "material": laws[variant], "checkpoint_every": args.checkpoint_every}
                 if args.easy_steps is not None:  # only then, so that a study run before the option resumes as it was
                     target["solver"] = {"easy_steps": args.easy_steps}
                 runs.append(Run(tag, "femgran.sweep:case_target", target,

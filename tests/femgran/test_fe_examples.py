@@ -119,6 +119,34 @@ def test_fe_04_goes_on_to_a_larger_axial_strain(tmp_path, load_example):
     assert abs(longer["q_kPa"][-1] - longer["q_kPa"][2]) > 0.05 * longer["q_kPa"][2]  # it did go on
 
 
+def test_fe_04_a_run_killed_part_way_goes_on_from_its_last_checkpoint(tmp_path, load_example):
+    """A run on a Dask worker cannot catch Ctrl-C: killed part-way, it leaves its checkpoints (every
+    --checkpoint-every steps) and no record of its end. The same command again goes on from the last
+    checkpoint and ends where the uninterrupted run ends."""
+    from femgran import checkpoint as ck
+
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    common = ["--resolutions", "4", "--variants", "regularised", "--youngs-modulus", "50000", "--axial-strain",
+              "0.01", "--steps", "4", "--checkpoint-every", "2"]
+    fe_04.main([*common, "--out", str(tmp_path / "killed")])
+    fe_04.main([*common, "--out", str(tmp_path / "direct")])
+    folder = tmp_path / "killed" / "resolution_4"
+    saved = sorted(p.stem for p in (folder / "checkpoints").glob("step_*.json"))
+    assert saved == ["step_000002", "step_000004"]
+    # the worker killed in step 4: its checkpoint and the records of the run's end never written
+    for name in ("checkpoints/step_000004.json", "checkpoints/step_000004.npz", "sweep_run.json", "summary.json",
+                 "status.json"):
+        (folder / name).unlink()
+    assert ck.latest(folder).stem == "step_000002"
+    (folder / "biaxial_0001.vtu").unlink()  # written again only by a run that starts over
+    fe_04.main([*common, "--out", str(tmp_path / "killed")])
+    assert not (folder / "biaxial_0001.vtu").exists() and (folder / "biaxial_0004.vtu").is_file()
+    resumed, direct = (fe_04.collect(tmp_path / k)[0]["history"] for k in ("killed", "direct"))
+    assert len(resumed["eps_a"]) == 5 and resumed["eps_a"][-1] == pytest.approx(0.01)
+    np.testing.assert_allclose(resumed["q_kPa"], direct["q_kPa"], rtol=1e-9)
+    assert ck.latest(folder).stem == "step_000004"
+
+
 def test_fe_04_back_stress_at_several_deposition_angles(tmp_path, load_example):
     """--variants back_stress --alphas: one run per angle and variant, keyed (mesh, variant, alpha); meshes.csv
     names the angle and the back stress's modulus and length; band_vs_alpha.png is drawn. Before the peak
