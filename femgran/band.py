@@ -68,6 +68,7 @@ non-negative intensity at each (e.g. the deviatoric strain increment after the p
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -419,7 +420,7 @@ def measure_band(points, intensity, *, element_size: float, exclude: tuple[float
                                           np.nan)), method, section, peak_width)
 
 
-def band_history(run_folder, window: float = 0.005, *, name: str = "biaxial"):
+def band_history(run_folder, window: float = 0.005, *, name: str = "biaxial", law: bool = False):
     """The band active in each window of axial strain after the peak, from a run folder's VTK series.
 
     The summary's band is that of the whole post-peak strain increment; a band that forms, narrows or hands
@@ -439,7 +440,10 @@ and a window longer than the whole post-peak path is that path). In each, the in
     NaN for a series without the cell field ``stress``) and ``dilatancy_deg`` (the strain increment over the
     window), of :func:`in_band_state`: the arm's own
     Coulomb (45 + phi / 2) and Roscoe (45 + psi / 2) angles as it runs, where the run's peak gives them once.
-    ``femgran band RUN_FOLDER`` writes it as ``band_history.csv``.
+    ``law=True`` adds ``law_angle_deg`` and ``law_indicator`` (and ``conjugate_``): the band the law itself forms
+    at the friction inside each arm, in the arm's sense (:func:`law_band_angles`, the run's material from its
+    ``case.toml``, :func:`run_material`; a biaxial run only).
+    ``femgran band RUN_FOLDER [--law]`` writes it as ``band_history.csv``.
     """
     from material.table import Table
 
@@ -448,6 +452,7 @@ and a window longer than the whole post-peak path is that path). In each, the in
         raise ValueError(f"window = {window!r}: must be an axial strain > 0 (e.g. 0.005)")
     folder = Path(run_folder)
     w_eps, w_q, paths, start = written_steps(folder, name)
+    of_law = run_material(folder) if law else None  # before the windows: a folder without it fails at once
     cache = {}
     sides = [0.0, 0.0]  # the abscissae of the specimen's left and right sides [m], from the cells read
 
@@ -484,6 +489,17 @@ and a window longer than the whole post-peak path is that path). In each, the in
                         f"{prefix}right_y_m": b.height_at(sides[1])})
         table.append(row)
         i0 = i1
+    if of_law is not None and len(table):
+        material, alpha, p0 = of_law
+        for prefix in ("", "conjugate_"):
+            angle, indicator = law_band_angles(material, alpha, p0, table[f"{prefix}friction_deg"],
+                                               table[f"{prefix}rising"] > 0.5)
+            table.add_column(f"{prefix}law_angle_deg", angle,
+                             "the band of the law at the friction inside the arm, in its sense (Rice's condition "
+                             "on the plane-strain element path, femgran.band.law_band_angles) [deg]")
+            table.add_column(f"{prefix}law_indicator", indicator,
+                             "Rice's indicator of that family there (about 0: a band forms; near -1: no band to "
+                             "compare with) [-]")
     return table
 
 
@@ -586,3 +602,76 @@ def deviatoric_intensity(d_strain) -> np.ndarray:
     d = np.asarray(d_strain, dtype=float)
     dev = d - np.trace(d, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
     return np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
+
+
+#: Material keys that give the law a length of the boundary-value problem; the element path has none.
+_LENGTHS = ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")
+
+
+def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *,
+                    axial_strain: float = 0.08, steps: int = 1600) -> tuple[np.ndarray, np.ndarray]:
+    """The band the law itself would form at a given mobilised friction after the peak: Rice's condition on
+    the plane-strain element path of the same material (:func:`material.driver.plane_strain`, the lateral
+    stress ``p0_kPa`` held, the deposition angle ``alpha_deg``), read at the first row past the peak whose
+    mobilised friction, sin(phi) = q13 / (q13 + 2 p0), has fallen to ``friction_deg``, in the family of each
+    ``rising`` (True: the driver's ``rice_rising_deg``, bands rising toward +x, as a biaxial run's rising arm;
+    False: ``rice_falling_deg``). A friction at or above the path's peak reads the peak row; one the path
+    never falls to, or a NaN, gives NaN. Returns (angles [deg], the family's indicator there): the scale-free
+    least det Q of :func:`material.localisation.ellipticity`, about 0 where a band forms; near -1 the acoustic
+    tensor is far from singular in the other sense (strongly indefinite: measured on the element path at
+    alpha = 90 with ``equator-78`` and at alpha = 0 with the default rule, just past the peak) and the
+    direction of its least det is no band to compare with.
+
+    This is how to tell a band the law selects from one the boundary-value problem adds: the arms of the
+    biaxial runs with ``equator-78`` follow it within about 1 deg as they soften, at the friction measured
+    inside them (:func:`band_history`; ``docs/regularisation.md``, section 4). ``material`` is a material
+    specification as a case file writes it (preset, set, rule, stabilisation, ...); its lengths (gradient,
+    crack band, back stress) are dropped, its step stabilisation is kept (the runs' algorithmic tangent).
+    The path runs ``steps`` steps to ``axial_strain`` (0.005 % each by default: the angles are those of 1600
+    steps to 0.25 deg)."""
+    from material import driver
+    from material.factory import make_material
+
+    if not isinstance(material, Mapping):
+        raise ValueError(f"material = {material!r}: a specification mapping is needed (a case file's [material])")
+    friction = np.atleast_1d(np.asarray(friction_deg, dtype=float))
+    sense = np.broadcast_to(np.asarray(rising, dtype=bool), friction.shape)
+    p0 = float(p0_kPa)
+    if not (np.isfinite(p0) and p0 > 0.0):
+        raise ValueError(f"p0_kPa = {p0_kPa!r}: must be > 0 (the lateral stress of the biaxial run)")
+    spec = {k: v for k, v in dict(material).items() if k not in _LENGTHS}
+    res = driver.plane_strain(make_material(spec, alpha_deg=float(alpha_deg)), p0_kPa=p0,
+                              alpha_deg=float(alpha_deg), axial_strain=axial_strain, steps=steps)
+    q = np.asarray(res["q13_kPa"], dtype=float)
+    peak = int(np.nanargmax(q))
+    with np.errstate(invalid="ignore"):
+        mobilised = np.degrees(np.arcsin(np.clip(q / (q + 2.0 * p0), -1.0, 1.0)))
+    after = np.arange(len(q)) >= peak
+    angle, indicator = np.full(friction.shape, np.nan), np.full(friction.shape, np.nan)
+    for k, (phi, up) in enumerate(zip(friction, sense)):
+        if not np.isfinite(phi):
+            continue
+        rows = np.flatnonzero(after & (mobilised <= phi)) if phi < mobilised[peak] else np.array([peak])
+        if rows.size:
+            family = "rice_rising_" if up else "rice_falling_"
+            angle[k], indicator[k] = res[family + "deg"][rows[0]], res[family + "indicator"][rows[0]]
+    return angle, indicator
+
+
+def run_material(run_folder) -> tuple[dict, float, float]:
+    """(the material specification, alpha_deg, p0_kPa) of a biaxial run folder, from its ``case.toml``; an
+    error naming the folder where the file, the case or the material is not there (a run given a material
+    object has no specification on disk)."""
+    import tomllib
+
+    path = Path(run_folder) / "case.toml"
+    if not path.is_file():
+        raise FileNotFoundError(f"run_folder = {str(run_folder)!r}: no case.toml (the law's band needs the run's "
+                                f"material as a case file writes it)")
+    doc = tomllib.loads(path.read_text())
+    case, material = doc.get("case", {}), doc.get("material")
+    if case.get("name") != "biaxial" or not isinstance(material, dict):
+        raise ValueError(f"run_folder = {str(run_folder)!r}: the law's band needs a biaxial run with a material "
+                         f"specification in case.toml (found case {case.get('name')!r}, material "
+                         f"{'a specification' if isinstance(material, dict) else 'none'})")
+    return material, float(case.get("alpha_deg", 0.0)), float(case.get("p0_kPa", 100.0))

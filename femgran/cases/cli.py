@@ -434,10 +434,11 @@ def _ellipticity(args) -> int:
 def _band_history(args) -> int:
     from femgran.band import band_history, is_zone
 
-    table = band_history(args.run_folder, args.window, name=args.name)
+    table = band_history(args.run_folder, args.window, name=args.name, law=args.law)
     path = table.write_csv(Path(args.run_folder) / "band_history.csv")
     print(f"{'axial strain [%]':>18} {'q [kPa]':>15}   band: angle [deg], thickness [mm], contrast, "
-          f"heights where it meets the left / right side [mm], friction / dilatancy inside it [deg]   | other arm")
+          f"heights where it meets the left / right side [mm], friction / dilatancy inside it [deg]"
+          + (", the law's band at that friction [deg] (its Rice indicator)" if args.law else "") + "   | other arm")
     for r in table.rows():
         arms = []
         for prefix in ("", "conjugate_"):
@@ -445,7 +446,9 @@ def _band_history(args) -> int:
                 arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
                             f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f} "
                             f"{1e3 * r[prefix + 'left_y_m']:6.1f} / {1e3 * r[prefix + 'right_y_m']:6.1f} "
-                            f"{r[prefix + 'friction_deg']:5.1f} / {r[prefix + 'dilatancy_deg']:5.1f}")
+                            f"{r[prefix + 'friction_deg']:5.1f} / {r[prefix + 'dilatancy_deg']:5.1f}"
+                            + (f"  law {r[prefix + 'law_angle_deg']:5.1f} ({r[prefix + 'law_indicator']:+.3f})"
+                               if args.law else ""))
             elif is_zone(r[prefix + "contrast"], r[prefix + "peak_width_m"], r[prefix + "section_m"]):
                 zone = f"zone {1e3 * r[prefix + 'peak_width_m']:.1f} of {1e3 * r[prefix + 'section_m']:.1f}"
                 arms.append(f"{zone:>56}")
@@ -510,6 +513,10 @@ def register(subparsers) -> None:
     p.add_argument("run_folder", help="the folder of a biaxial (or triaxial) run with its VTK series")
     p.add_argument("--window", type=float, default=0.005, help="axial strain of each window (default 0.005)")
     p.add_argument("--name", default="biaxial", help="the case's name, of NAME.pvd (default biaxial)")
+    p.add_argument("--law", action="store_true",
+                   help="beside each arm, the band the law itself forms at the friction inside it (Rice's condition "
+                        "on the plane-strain element path of the run's material, femgran.band.law_band_angles; "
+                        "a biaxial run whose case.toml holds its material)")
     p.set_defaults(func=_band_history)
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,

@@ -174,8 +174,15 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
     whole = band_history(tmp_path / "band", 0.05)
     assert len(whole) == 1 and whole["localised"][0] == 1.0
     assert whole["angle_deg"][0] == pytest.approx(loc.band_angle_deg, abs=3.0)
-    assert main(["band", str(tmp_path / "band"), "--window", "0.01"]) == 0
+    assert main(["band", str(tmp_path / "band"), "--window", "0.01", "--law"]) == 0
     windows = read_table(tmp_path / "band" / "band_history.csv")
+    # --law: the law's own band at the friction inside each arm, in the arm's sense, from the run's case.toml
+    from femgran.band import law_band_angles
+
+    law, indicator = law_band_angles(_SOFTENING, 0.0, 100.0, windows["friction_deg"], windows["rising"] > 0.5)
+    np.testing.assert_array_equal(windows["law_angle_deg"], law)
+    np.testing.assert_array_equal(windows["law_indicator"], indicator)
+    assert np.isfinite(law).any() and "conjugate_law_angle_deg" in windows
     assert np.allclose(windows["eps_from"][1:], windows["eps_to"][:-1])  # consecutive windows
     assert np.allclose(np.diff(windows["eps_from"]), 0.01, atol=0.05 / 60)  # of 0.01, to one step
     assert windows["eps_from"][0] == pytest.approx(whole["eps_from"][0]) and windows["eps_to"][-1] > 0.045
@@ -195,6 +202,44 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
                                                       "axial_strain": 0.05, "steps": 20}, "ottawa_c109")
     assert flat["completed"] and not flat["localised"] and flat["band_contrast"] < 0.3
     assert np.isnan(flat["band_thickness_m"]) and isinstance(flat["band_angle_method"], str)
+
+
+_STUDY = {"preset": "ottawa_c109", "stabilisation": 0.01, "rule": "equator-78", "nonlocal_length": 0.006,
+          "set": {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}}
+
+
+def test_the_law_s_own_band_at_the_friction_inside_an_arm():
+    """The shear-band study's sand with equator-78 at alpha = 60 (the gradient's length is dropped: the element
+    has none): Rice's condition on the plane-strain element path at the first row past the peak whose mobilised
+    friction has fallen to the given one. Measured: the rising family at 60.75 deg at the peak (37.3 deg of
+    friction; a friction above it reads the peak), 58.0 at 33 deg and 55.5 at 31 deg, while the falling one
+    goes from 61.5 to 65.25 and 65.0; the biaxial run's rising arm at alpha = 60 read 58.7 / 57.2 / 56.5 deg at
+    32.9 / 31.8 / 31.1 deg inside it (docs/regularisation.md, section 4)."""
+    from femgran.band import law_band_angles
+
+    rising, indicator = law_band_angles(_STUDY, 60.0, 100.0, [40.0, 33.0, 31.0, 20.0, np.nan], True)
+    np.testing.assert_allclose(rising[:3], [60.75, 58.0, 55.5], atol=0.26)
+    assert np.isnan(rising[3:]).all() and np.isnan(indicator[3:]).all()  # never that low; no friction
+    assert indicator[0] > 0.0 > indicator[1] > -0.05  # elliptic at the peak, a band forming past it
+    falling, _ = law_band_angles(_STUDY, 60.0, 100.0, [40.0, 33.0, 31.0], False)
+    np.testing.assert_allclose(falling, [61.5, 65.25, 65.0], atol=0.26)
+    with pytest.raises(ValueError, match="p0_kPa = -1"):
+        law_band_angles(_STUDY, 60.0, -1.0, [33.0], True)
+    with pytest.raises(ValueError, match="a specification mapping"):
+        law_band_angles("ottawa_c109", 60.0, 100.0, [33.0], True)
+
+
+def test_the_law_s_band_needs_a_biaxial_run_with_its_material(tmp_path):
+    from femgran.band import run_material
+
+    with pytest.raises(FileNotFoundError, match="no case.toml"):
+        run_material(tmp_path)
+    (tmp_path / "case.toml").write_text('[case]\nname = "triaxial"\n\n[material]\npreset = "ottawa_c109"\n')
+    with pytest.raises(ValueError, match="found case 'triaxial'"):
+        run_material(tmp_path)
+    (tmp_path / "case.toml").write_text('[case]\nname = "biaxial"\nalpha_deg = 30.0\np0_kPa = 50.0\n\n'
+                                        '[material]\npreset = "ottawa_c109"\n')
+    assert run_material(tmp_path) == ({"preset": "ottawa_c109"}, 30.0, 50.0)
 
 
 def test_both_arms_of_an_x_are_measured_with_their_own_thickness():
