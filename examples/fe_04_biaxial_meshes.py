@@ -394,7 +394,7 @@ def _forming_and_final(row, window: float = 0.005) -> dict:
     are); a window without one gives its stronger arm, with ``localised`` 0 and its fitted width."""
     from femgran.band import band_history
 
-    keys = ("angle_deg", "thickness_m", "localised", "rising", "peak_width_m", "section_m", "contrast")
+    keys = ("angle_deg", "thickness_m", "localised", "rising", "peak_width_m", "section_m", "contrast", "friction_deg")
     windows = band_history(row["folder"], window)
     if not len(windows):  # the run ended at its peak: no window after it
         return {name: {**dict.fromkeys(keys, float("nan")), "localised": 0.0, "eps": (float("nan"),) * 2}
@@ -405,6 +405,25 @@ def _forming_and_final(row, window: float = 0.005) -> dict:
         out[name] = {key: float(windows[prefix + key][i]) for key in keys}
         out[name]["eps"] = (float(windows["eps_from"][i]), float(windows["eps_to"][i]))
     return out
+
+
+def _law_angles(row, bands: dict) -> tuple[float, float]:
+    """The band the law forms at the friction inside the arm of the forming and the final window of
+    :func:`_forming_and_final` (:func:`femgran.band.law_band_angles`, the run's material from its case.toml),
+    in each arm's sense; NaN for a window without a friction. Prints both."""
+    from femgran.band import law_band_angles, run_material
+
+    material, alpha, p0 = run_material(row["folder"])
+    names = ("forming", "final")
+    angles, indicator = law_band_angles(material, alpha, p0, [bands[k]["friction_deg"] for k in names],
+                                        [bool(bands[k]["rising"] > 0.5) for k in names])
+    print(f"  alpha {alpha:g}: the law's band at the friction inside the arm, "
+          + "; ".join(f"{k} {bands[k]['friction_deg']:.1f} deg -> {v:.2f} deg, indicator {x:+.3f} (the arm "
+                      f"{bands[k]['angle_deg']:.1f})" for k, v, x in zip(names, angles, indicator)), flush=True)
+    # not drawn where the acoustic tensor is strongly indefinite: there its least det points nowhere in
+    # particular (measured on these paths: -0.03 to +0.005 where bands form, -0.87 to -1.0 in those states,
+    # nothing between)
+    return tuple(float(v) if x > -0.5 else float("nan") for v, x in zip(angles, indicator))
 
 
 def _describe(name: str, b: dict) -> str:
@@ -424,9 +443,11 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
     0.5 % axial strain after the peak (circles: the band as it forms) and in the last (squares), with the
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
     zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
-    increment (triangles, where there is one), and, for ``material_spec`` (the study's sand) at its lateral
+    increment (triangles, where there is one), the band the law itself forms at the friction inside the arm
+    in each of the two windows (crosses, :func:`_law_angles`), and, for ``material_spec`` (the study's sand) at its lateral
     stress ``p0_kPa``, Rice's onset on the plane-strain element path for the rising and the falling bands
-    (:func:`femgran.figures.rice_onset_angles`);
+    (:func:`femgran.figures.rice_onset_angles`: rate-independent, so with ``equator-78``, whose
+    rate-independent element path stops at the peak below alpha = 90, none);
     and beside it, for the finest mesh of the first variant, the deviatoric strain increment from the peak to
     the end of each run. Prints each run's two windows and Rice's angles."""
     import matplotlib
@@ -452,6 +473,11 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
         for r, b in zip(sel, bands):
             print(f"{variant}, {n} elements, alpha {r['alpha_deg']:g}: "
                   + "; ".join(_describe(name, b[name]) for name in ("forming", "final")), flush=True)
+        # the law's own band at the friction inside the arm in each window (femgran.band.law_band_angles): where
+        # the arm follows it, the law sets the angle, not the mesh or the platens
+        law = np.array([_law_angles(r, b) for r, b in zip(sel, bands)])  # (runs, 2): forming, final
+        ax.scatter(np.repeat(a, 2), law.ravel(), color=f"C{i}", marker="x", s=22, lw=0.9,
+                   label=f"{variant}, {n} elements across, the law's band at the friction inside")
         for name, marker, ls in (("forming", "o", "-"), ("final", "s", "--")):
             angle = np.array([b[name]["angle_deg"] for b in bands])
             band = np.array([bool(b[name]["localised"]) for b in bands])
@@ -476,6 +502,8 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
         for ref, style in (("coulomb", ":"), ("roscoe", "--"), ("arthur", "-.")):
             (line,) = ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
             legend.append((line, ref))
+        legend.append((ax.scatter([], [], color="k", marker="x", s=22, lw=0.9),
+                       "x: the law's band at the friction inside the arm (Rice, element path; femgran band --law)"))
         if material_spec is not None:  # the law's own bands, each family (the X's arms need not be mirror images)
             from femgran.figures import rice_onset_angles
 
