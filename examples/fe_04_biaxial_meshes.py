@@ -33,8 +33,8 @@ each 0.5 % window after the peak against the finest mesh's, in that mesh's eleme
 ``--scheduler ADDRESS`` on an existing cluster; the same command again runs only the runs not yet
 complete, and a run stopped part-way (a worker killed: it cannot catch Ctrl-C) goes on from its last
 checkpoint, written every ``--checkpoint-every`` steps. The same command with a larger
-``--axial-strain`` and ``--steps`` in proportion takes a finished study on to the new end: each run goes on from its last checkpoint, with the step it had, to
-what the run aimed there from the start would give. ``meshes.csv`` and the plot collect every run folder
+``--axial-strain`` and ``--steps`` in proportion takes a finished study on to the new end: each run goes
+on from its last checkpoint, with the step it had, to what the run aimed there from the start would give. ``meshes.csv`` and the plot collect every run folder
 found under ``--out``.
 
     python examples/fe_04_biaxial_meshes.py [--quick] [--jobs 2] [--resolutions 12 18 24] [--variants ...]

@@ -674,4 +674,7 @@ def run_material(run_folder) -> tuple[dict, float, float]:
         raise ValueError(f"run_folder = {str(run_folder)!r}: the law's band needs a biaxial run with a material "
                          f"specification in case.toml (found case {case.get('name')!r}, material "
                          f"{'a specification' if isinstance(material, dict) else 'none'})")
-    return material, float(case.get("alpha_deg", 0.0)), float(case.get("p0_kPa", 100.0))
+    missing = [key for key in ("alpha_deg", "p0_kPa") if key not in case]
+    if missing:
+        raise ValueError(f"run_folder = {str(run_folder)!r}: its case.toml has no {missing} under [case]")
+    return material, float(case["alpha_deg"]), float(case["p0_kPa"])

@@ -237,6 +237,9 @@ def test_the_law_s_band_needs_a_biaxial_run_with_its_material(tmp_path):
     (tmp_path / "case.toml").write_text('[case]\nname = "triaxial"\n\n[material]\npreset = "ottawa_c109"\n')
     with pytest.raises(ValueError, match="found case 'triaxial'"):
         run_material(tmp_path)
+    (tmp_path / "case.toml").write_text('[case]\nname = "biaxial"\nalpha_deg = 30.0\n\n[material]\npreset = "x"\n')
+    with pytest.raises(ValueError, match=r"no \['p0_kPa'\] under \[case\]"):
+        run_material(tmp_path)
     (tmp_path / "case.toml").write_text('[case]\nname = "biaxial"\nalpha_deg = 30.0\np0_kPa = 50.0\n\n'
                                         '[material]\npreset = "ottawa_c109"\n')
     assert run_material(tmp_path) == ({"preset": "ottawa_c109"}, 30.0, 50.0)
