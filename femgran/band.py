@@ -604,10 +604,6 @@ def deviatoric_intensity(d_strain) -> np.ndarray:
     return np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
 
 
-#: Material keys that give the law a length of the boundary-value problem; the element path has none.
-_LENGTHS = ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")
-
-
 def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *,
                     axial_strain: float = 0.08, steps: int = 1600) -> tuple[np.ndarray, np.ndarray]:
     """The band the law itself would form at a given mobilised friction after the peak: Rice's condition on
@@ -630,7 +626,7 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     The path runs ``steps`` steps to ``axial_strain`` (0.005 % each by default: the angles are those of 1600
     steps to 0.25 deg)."""
     from material import driver
-    from material.factory import make_material
+    from material.factory import LENGTH_KEYS, make_material
 
     if not isinstance(material, Mapping):
         raise ValueError(f"material = {material!r}: a specification mapping is needed (a case file's [material])")
@@ -639,7 +635,7 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     p0 = float(p0_kPa)
     if not (np.isfinite(p0) and p0 > 0.0):
         raise ValueError(f"p0_kPa = {p0_kPa!r}: must be > 0 (the lateral stress of the biaxial run)")
-    spec = {k: v for k, v in dict(material).items() if k not in _LENGTHS}
+    spec = {k: v for k, v in dict(material).items() if k not in LENGTH_KEYS}
     res = driver.plane_strain(make_material(spec, alpha_deg=float(alpha_deg)), p0_kPa=p0,
                               alpha_deg=float(alpha_deg), axial_strain=axial_strain, steps=steps)
     q = np.asarray(res["q13_kPa"], dtype=float)

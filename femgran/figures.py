@@ -363,10 +363,9 @@ def rice_onset_angles(material_spec: dict, p0_kPa: float, alphas=tuple(range(0, 
     forming at the last elliptic row (the driver tilts the bedding toward +x, as the biaxial case does), NaN
     where the path stays elliptic."""
     from material import driver
-    from material.factory import make_material
+    from material.factory import LENGTH_KEYS, make_material
 
-    lengths = ("nonlocal_length", "regularise", "back_stress_modulus", "back_stress_length")
-    spec = {k: v for k, v in material_spec.items() if k not in lengths}
+    spec = {k: v for k, v in material_spec.items() if k not in LENGTH_KEYS}
     spec["stabilisation"] = 0.0
     angles = {"rising": [], "falling": []}
     for a in alphas:

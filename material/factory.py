@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS"]
+__all__ = ["make_material", "plane_strain_axes", "deposition_axes", "LAWS", "LENGTH_KEYS"]
 
 #: Keys of each law in a mapping spec (the ``[material]`` table of a case file).
 LAWS = {
@@ -44,6 +44,10 @@ LAWS = {
     "mohr_coulomb": ("E_kPa", "nu", "cohesion_kPa", "friction_deg", "dilation_deg"),
     "linear_elastic": ("E_kPa", "nu"),
 }
+
+#: Keys of a CPA spec that give the law a length of the boundary-value problem (crack band, implicit gradient,
+#: gradient back stress): a material point on an element path has none, so its drivers drop them.
+LENGTH_KEYS = ("regularise", "nonlocal_length", "over_nonlocal", "back_stress_modulus", "back_stress_length")
 
 DEFAULT_PRESET = "ottawa_c109"
 _PARAMETER_SUFFIXES = (".toml", ".json")
