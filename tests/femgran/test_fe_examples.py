@@ -179,6 +179,15 @@ def test_fe_04_refuses_a_back_stress_out_of_range(tmp_path, load_example, capsys
     assert not (tmp_path / "sweep.json").exists()
 
 
+def test_fe_04_refuses_a_negative_checkpoint_interval(tmp_path, load_example, capsys):
+    fe_04 = load_example("fe_04_biaxial_meshes")
+    with pytest.raises(SystemExit) as stop:
+        fe_04.main(["--checkpoint-every", "-1", "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "--checkpoint-every must be 0 (only at the end) or more, got -1" in capsys.readouterr().err
+    assert not (tmp_path / "sweep.json").exists()
+
+
 def test_fe_04_moves_the_weak_zone_and_refuses_one_outside_the_specimen(tmp_path, load_example, capsys):
     """--weak-zone-at Y puts the weak zone's centre Y W above the bottom (the run's weak_zone_height is
     Y / --height-ratio, its folder says where); the default keeps the study's folders and fields."""
