@@ -407,23 +407,30 @@ def _forming_and_final(row, window: float = 0.005) -> dict:
     return out
 
 
-def _law_angles(row, bands: dict) -> tuple[float, float]:
+def _law_angles(row, bands: dict) -> np.ndarray:
     """The band the law forms at the friction inside the arm of the forming and the final window of
     :func:`_forming_and_final` (:func:`femgran.band.law_band_angles`, the run's material from its case.toml),
-    in each arm's sense; NaN for a window without a friction. Prints both."""
-    from femgran.band import law_band_angles, run_material
+    in each arm's sense, on the element path sheared in the arm's own sense and on the one sheared the other
+    way (they differ only on a mirror-symmetric bedding); NaN for a window without a friction. Prints them;
+    returns (2 shears, 2 windows)."""
+    from femgran.band import _law_path, _read_law, run_material
 
     material, alpha, p0 = run_material(row["folder"])
     names = ("forming", "final")
-    angles, indicator = law_band_angles(material, alpha, p0, [bands[k]["friction_deg"] for k in names],
-                                        [bool(bands[k]["rising"] > 0.5) for k in names])
-    print(f"  alpha {alpha:g}: the law's band at the friction inside the arm, "
-          + "; ".join(f"{k} {bands[k]['friction_deg']:.1f} deg -> {v:.2f} deg, indicator {x:+.3f} (the arm "
-                      f"{bands[k]['angle_deg']:.1f})" for k, v, x in zip(names, angles, indicator)), flush=True)
-    # not drawn where the acoustic tensor is strongly indefinite: there its least det points nowhere in
-    # particular (measured on these paths: -0.03 to +0.005 where bands form, -0.87 to -1.0 in those states,
-    # nothing between)
-    return tuple(float(v) if x > -0.5 else float("nan") for v, x in zip(angles, indicator))
+    path = _law_path(material, alpha, p0, 0.08, 1600)
+    out = np.full((2, 2), np.nan)
+    for k, shear in enumerate(("own", "other")):
+        angles, indicator = _read_law(path, [bands[n]["friction_deg"] for n in names],
+                                      [bool(bands[n]["rising"] > 0.5) for n in names], shear)
+        print(f"  alpha {alpha:g}: the law's band at the friction inside the arm (element sheared "
+              f"{'in the arm' + chr(39) + 's sense' if shear == 'own' else 'the other way'}), "
+              + "; ".join(f"{n} {bands[n]['friction_deg']:.1f} deg -> {v:.2f} deg, indicator {x:+.3f} (the arm "
+                          f"{bands[n]['angle_deg']:.1f})" for n, v, x in zip(names, angles, indicator)), flush=True)
+        # not drawn where the acoustic tensor is strongly indefinite: there its least det points nowhere in
+        # particular (measured on these paths: -0.03 to +0.005 where bands form, -0.87 to -1.0 in those states,
+        # nothing between)
+        out[k] = np.where(indicator > -0.5, angles, np.nan)
+    return out
 
 
 def _describe(name: str, b: dict) -> str:
@@ -444,7 +451,8 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
     zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
     increment (triangles, where there is one), the band the law itself forms at the friction inside the arm
-    in each of the two windows (crosses, :func:`_law_angles`), and, for ``material_spec`` (the study's sand) at its lateral
+    in each of the two windows (crosses: on the element path sheared in the arm's sense; plus signs: sheared
+    the other way, where that differs, on a mirror-symmetric bedding; :func:`_law_angles`), and, for ``material_spec`` (the study's sand) at its lateral
     stress ``p0_kPa``, Rice's onset on the plane-strain element path for the rising and the falling bands
     (:func:`femgran.figures.rice_onset_angles`: rate-independent, so with ``equator-78``, whose
     rate-independent element path stops at the peak below alpha = 90, none);
@@ -475,9 +483,12 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
                   + "; ".join(_describe(name, b[name]) for name in ("forming", "final")), flush=True)
         # the law's own band at the friction inside the arm in each window (femgran.band.law_band_angles): where
         # the arm follows it, the law sets the angle, not the mesh or the platens
-        law = np.array([_law_angles(r, b) for r, b in zip(sel, bands)])  # (runs, 2): forming, final
-        ax.scatter(np.repeat(a, 2), law.ravel(), color=f"C{i}", marker="x", s=22, lw=0.9,
+        law = np.array([_law_angles(r, b) for r, b in zip(sel, bands)])  # (runs, shears, windows)
+        ax.scatter(np.repeat(a, 2), law[:, 0].ravel(), color=f"C{i}", marker="x", s=22, lw=0.9,
                    label=f"{variant}, {n} elements across, the law's band at the friction inside")
+        other_way = law[:, 1] != law[:, 0]  # the element path sheared the other way (mirror-symmetric beddings)
+        ax.scatter(np.repeat(a, 2)[other_way.ravel()], law[:, 1][other_way], color=f"C{i}", marker="+", s=30,
+                   lw=0.9, label=f"{variant}, {n} elements across, the same, element sheared the other way")
         for name, marker, ls in (("forming", "o", "-"), ("final", "s", "--")):
             angle = np.array([b[name]["angle_deg"] for b in bands])
             band = np.array([bool(b[name]["localised"]) for b in bands])
@@ -504,6 +515,8 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
             legend.append((line, ref))
         legend.append((ax.scatter([], [], color="k", marker="x", s=22, lw=0.9),
                        "x: the law's band at the friction inside the arm (Rice, element path; femgran band --law)"))
+        legend.append((ax.scatter([], [], color="k", marker="+", s=30, lw=0.9),
+                       "+: the same, the element sheared the other way (alpha = 0, 90: it shears after the peak)"))
         if material_spec is not None:  # the law's own bands, each family (the X's arms need not be mirror images)
             from femgran.figures import rice_onset_angles
 

@@ -441,8 +441,10 @@ and a window longer than the whole post-peak path is that path). In each, the in
     window), of :func:`in_band_state`: the arm's own
     Coulomb (45 + phi / 2) and Roscoe (45 + psi / 2) angles as it runs, where the run's peak gives them once.
     ``law=True`` adds ``law_angle_deg`` and ``law_indicator`` (and ``conjugate_``): the band the law itself forms
-    at the friction inside each arm, in the arm's sense (:func:`law_band_angles`, the run's material from its
-    ``case.toml``, :func:`run_material`; a biaxial run only).
+    at the friction inside each arm, in the arm's sense, on the element path sheared in that sense
+    (:func:`law_band_angles`, the run's material from its ``case.toml``, :func:`run_material`; a biaxial run
+    only), and ``law_other_angle_deg``, ``law_other_indicator`` on the path sheared the other way (the two
+    differ only on a mirror-symmetric bedding).
     ``femgran band RUN_FOLDER [--law]`` writes it as ``band_history.csv``.
     """
     from material.table import Table
@@ -490,16 +492,17 @@ and a window longer than the whole post-peak path is that path). In each, the in
         table.append(row)
         i0 = i1
     if of_law is not None and len(table):
-        material, alpha, p0 = of_law
+        law_path = _law_path(*of_law, axial_strain=0.08, steps=1600)
         for prefix in ("", "conjugate_"):
-            angle, indicator = law_band_angles(material, alpha, p0, table[f"{prefix}friction_deg"],
-                                               table[f"{prefix}rising"] > 0.5)
-            table.add_column(f"{prefix}law_angle_deg", angle,
-                             "the band of the law at the friction inside the arm, in its sense (Rice's condition "
-                             "on the plane-strain element path, femgran.band.law_band_angles) [deg]")
-            table.add_column(f"{prefix}law_indicator", indicator,
-                             "Rice's indicator of that family there (about 0: a band forms; near -1: no band to "
-                             "compare with) [-]")
+            for shear, tag, sheared in (("own", "", "in the arm's own sense"), ("other", "other_", "the other way")):
+                angle, indicator = _read_law(law_path, table[f"{prefix}friction_deg"], table[f"{prefix}rising"] > 0.5,
+                                             shear)
+                table.add_column(f"{prefix}law_{tag}angle_deg", angle,
+                                 "the band of the law at the friction inside the arm, in its sense, on the element "
+                                 f"path sheared {sheared} (Rice's condition, femgran.band.law_band_angles) [deg]")
+                table.add_column(f"{prefix}law_{tag}indicator", indicator,
+                                 "Rice's indicator of that family there (about 0: a band forms; near -1: no band "
+                                 "to compare with) [-]")
     return table
 
 
@@ -604,7 +607,10 @@ def deviatoric_intensity(d_strain) -> np.ndarray:
     return np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
 
 
-def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *,
+_SHEAR_SENSES = ("own", "other")
+
+
+def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *, shear: str = "own",
                     axial_strain: float = 0.08, steps: int = 1600) -> tuple[np.ndarray, np.ndarray]:
     """The band the law itself would form at a given mobilised friction after the peak: Rice's condition on
     the plane-strain element path of the same material (:func:`material.driver.plane_strain`, the lateral
@@ -618,6 +624,13 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     alpha = 90 with ``equator-78`` and at alpha = 0 with the default rule, just past the peak) and the
     direction of its least det is no band to compare with.
 
+    ``shear`` says which of two bands where the bedding is mirror-symmetric (alpha = 0 or 90 deg): there
+    the element shears after the peak, in a sense the loading does not set (the driver's docstring), and the
+    family of bands in the sense of its shear keeps its angle while the other family turns. ``"own"`` reads
+    each arm as if the element had sheared in the arm's own sense, the sense in which the inside of a band
+    shears (eps_xz > 0 inside a band rising toward +x), ``"other"`` as if it had sheared the other way: one
+    path and its mirror image give both. On a bedding that is not mirror-symmetric the two agree.
+
     This is how to tell a band the law selects from one the boundary-value problem adds: the arms of the
     biaxial runs with ``equator-78`` follow it within about 1 deg as they soften, at the friction measured
     inside them (:func:`band_history`; ``docs/regularisation.md``, section 4). ``material`` is a material
@@ -625,30 +638,52 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     crack band, back stress) are dropped, its step stabilisation is kept (the runs' algorithmic tangent).
     The path runs ``steps`` steps to ``axial_strain`` (0.005 % each by default: the angles are those of 1600
     steps to 0.25 deg)."""
+    if shear not in _SHEAR_SENSES:
+        raise ValueError(f"shear = {shear!r}: allowed {', '.join(map(repr, _SHEAR_SENSES))}")
+    return _read_law(_law_path(material, alpha_deg, p0_kPa, axial_strain, steps), friction_deg, rising, shear)
+
+
+def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
+    """The element path of :func:`law_band_angles`: (its result, the mobilised friction [deg] per row, its peak
+    row, its shear sense after the peak: +1 toward rising bands, -1 toward falling ones, 0 where the
+    bedding is not mirror-symmetric, so that the path has no mirror image to read)."""
     from material import driver
     from material.factory import LENGTH_KEYS, make_material
 
     if not isinstance(material, Mapping):
         raise ValueError(f"material = {material!r}: a specification mapping is needed (a case file's [material])")
-    friction = np.atleast_1d(np.asarray(friction_deg, dtype=float))
-    sense = np.broadcast_to(np.asarray(rising, dtype=bool), friction.shape)
     p0 = float(p0_kPa)
     if not (np.isfinite(p0) and p0 > 0.0):
         raise ValueError(f"p0_kPa = {p0_kPa!r}: must be > 0 (the lateral stress of the biaxial run)")
+    alpha = float(alpha_deg)
     spec = {k: v for k, v in dict(material).items() if k not in LENGTH_KEYS}
-    res = driver.plane_strain(make_material(spec, alpha_deg=float(alpha_deg)), p0_kPa=p0,
-                              alpha_deg=float(alpha_deg), axial_strain=axial_strain, steps=steps)
+    res = driver.plane_strain(make_material(spec, alpha_deg=alpha), p0_kPa=p0, alpha_deg=alpha,
+                              axial_strain=axial_strain, steps=steps)
     q = np.asarray(res["q13_kPa"], dtype=float)
     peak = int(np.nanargmax(q))
     with np.errstate(invalid="ignore"):
         mobilised = np.degrees(np.arcsin(np.clip(q / (q + 2.0 * p0), -1.0, 1.0)))
-    after = np.arange(len(q)) >= peak
+    mirror = alpha % 90.0 == 0.0  # the bedding along x or z: the law is symmetric under x -> -x
+    sense = float(np.sign(np.mean(res["eps_xz"][peak:]))) if mirror else 0.0
+    return res, mobilised, peak, sense
+
+
+def _read_law(path, friction_deg, rising, shear):
+    """(angles, indicators) of :func:`law_band_angles` read on its path: on a mirror-symmetric bedding each arm
+    reads the family in the sense of the path's shear (``"own"``) or the other one (``"other"``), which is
+    the arm's family on the path sheared in the arm's own sense or the other way, by the mirror image."""
+    res, mobilised, peak, sense = path
+    friction = np.atleast_1d(np.asarray(friction_deg, dtype=float))
+    arms = np.broadcast_to(np.asarray(rising, dtype=bool), friction.shape)
     angle, indicator = np.full(friction.shape, np.nan), np.full(friction.shape, np.nan)
-    for k, (phi, up) in enumerate(zip(friction, sense)):
+    after = np.arange(len(mobilised)) >= peak
+    for k, (phi, up) in enumerate(zip(friction, arms)):
         if not np.isfinite(phi):
             continue
         rows = np.flatnonzero(after & (mobilised <= phi)) if phi < mobilised[peak] else np.array([peak])
         if rows.size:
+            if sense != 0.0:  # the family with the shear, or against it
+                up = (sense > 0.0) == (shear == "own")
             family = "rice_rising_" if up else "rice_falling_"
             angle[k], indicator[k] = res[family + "deg"][rows[0]], res[family + "indicator"][rows[0]]
     return angle, indicator

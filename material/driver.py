@@ -896,6 +896,13 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     ``b`` = (sigma2 - sigma3)/(sigma1 - sigma3) on the principal values, and Rice's localisation condition
     on each step's tangent: ``rice_indicator`` (< 0: a band can form), ``rice_band_deg``, and
     ``metadata["bifurcation"]``, the onset (:func:`_bifurcation`; ``docs/regularisation.md``, section 4).
+
+    Where the bedding is mirror-symmetric about the axes (alpha = 0 or 90 deg) and the law softens, the path
+    branches after the peak: the two planes of a mirror pair stop loading together, one unloads, and the
+    point shears, eps_xz growing from round-off to about 1e-2 by 8 % axial strain. The sense of that shear
+    is not set by the loading (it changes with the number of steps); the mirror image of the path is the
+    path sheared the other way, with the rising and falling columns exchanged (``docs/regularisation.md``,
+    section 4, "The element path shears after the peak").
     """
     p0 = check_positive("p0_kPa", p0_kPa)
     ea = check_positive("axial_strain", axial_strain)

@@ -438,7 +438,8 @@ def _band_history(args) -> int:
     path = table.write_csv(Path(args.run_folder) / "band_history.csv")
     print(f"{'axial strain [%]':>18} {'q [kPa]':>15}   band: angle [deg], thickness [mm], contrast, "
           f"heights where it meets the left / right side [mm], friction / dilatancy inside it [deg]"
-          + (", the law's band at that friction [deg] (its Rice indicator)" if args.law else "") + "   | other arm")
+          + (", the law's band at that friction [deg] (its Rice indicator) / the same, the element sheared the "
+             "other way" if args.law else "") + "   | other arm")
     for r in table.rows():
         arms = []
         for prefix in ("", "conjugate_"):
@@ -447,8 +448,8 @@ def _band_history(args) -> int:
                             f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f} "
                             f"{1e3 * r[prefix + 'left_y_m']:6.1f} / {1e3 * r[prefix + 'right_y_m']:6.1f} "
                             f"{r[prefix + 'friction_deg']:5.1f} / {r[prefix + 'dilatancy_deg']:5.1f}"
-                            + (f"  law {r[prefix + 'law_angle_deg']:5.1f} ({r[prefix + 'law_indicator']:+.3f})"
-                               if args.law else ""))
+                            + (f"  law {r[prefix + 'law_angle_deg']:5.1f} ({r[prefix + 'law_indicator']:+.3f}) / "
+                               f"{r[prefix + 'law_other_angle_deg']:5.1f}" if args.law else ""))
             elif is_zone(r[prefix + "contrast"], r[prefix + "peak_width_m"], r[prefix + "section_m"]):
                 zone = f"zone {1e3 * r[prefix + 'peak_width_m']:.1f} of {1e3 * r[prefix + 'section_m']:.1f}"
                 arms.append(f"{zone:>56}")
@@ -516,7 +517,8 @@ def register(subparsers) -> None:
     p.add_argument("--law", action="store_true",
                    help="beside each arm, the band the law itself forms at the friction inside it (Rice's condition "
                         "on the plane-strain element path of the run's material, femgran.band.law_band_angles; "
-                        "a biaxial run whose case.toml holds its material)")
+                        "a biaxial run whose case.toml holds its material), with the element sheared in the arm's "
+                        "own sense and, after a slash, the other way (they differ at alpha = 0 and 90 deg)")
     p.set_defaults(func=_band_history)
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,

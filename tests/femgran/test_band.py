@@ -182,7 +182,9 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
     law, indicator = law_band_angles(_SOFTENING, 0.0, 100.0, windows["friction_deg"], windows["rising"] > 0.5)
     np.testing.assert_array_equal(windows["law_angle_deg"], law)
     np.testing.assert_array_equal(windows["law_indicator"], indicator)
-    assert np.isfinite(law).any() and "conjugate_law_angle_deg" in windows
+    other, _ = law_band_angles(_SOFTENING, 0.0, 100.0, windows["friction_deg"], windows["rising"] > 0.5, shear="other")
+    np.testing.assert_array_equal(windows["law_other_angle_deg"], other)
+    assert np.isfinite(law).any() and "conjugate_law_angle_deg" in windows and "conjugate_law_other_indicator" in windows
     assert np.allclose(windows["eps_from"][1:], windows["eps_to"][:-1])  # consecutive windows
     assert np.allclose(np.diff(windows["eps_from"]), 0.01, atol=0.05 / 60)  # of 0.01, to one step
     assert windows["eps_from"][0] == pytest.approx(whole["eps_from"][0]) and windows["eps_to"][-1] > 0.045
@@ -227,6 +229,30 @@ def test_the_law_s_own_band_at_the_friction_inside_an_arm():
         law_band_angles(_STUDY, 60.0, -1.0, [33.0], True)
     with pytest.raises(ValueError, match="a specification mapping"):
         law_band_angles("ottawa_c109", 60.0, 100.0, [33.0], True)
+
+
+def test_on_a_mirror_symmetric_bedding_the_law_s_band_depends_on_the_sense_in_which_the_element_shears():
+    """At alpha = 0 the element path shears after the peak (from 3.25 % axial strain, 1.45 % past the peak,
+    docs/regularisation.md, section 4), in a sense its loading does not set: the family of bands in the sense
+    of the shear keeps its angle, the other turns. Measured: at 36.5 / 35 / 34 deg of friction, the family
+    with the shear at 65.0 / 64.75 / 64.75 deg, the one against it at 61.5 / 59.75 / 58.5. By the mirror image
+    a rising and a falling arm read the same in each sense. At alpha = 60 the element shears from the start
+    and the two answers are one."""
+    from femgran.band import law_band_angles
+
+    friction = [36.5, 35.0, 34.0] * 2
+    rising = [True] * 3 + [False] * 3
+    own, own_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising)
+    other, other_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising, shear="other")
+    np.testing.assert_array_equal(own[:3], own[3:])  # mirror images
+    np.testing.assert_array_equal(other[:3], other[3:])
+    np.testing.assert_allclose(own[:3], [65.0, 64.75, 64.75], atol=0.26)
+    np.testing.assert_allclose(other[:3], [61.5, 59.75, 58.5], atol=0.26)
+    assert np.abs(own_indicator).max() < 0.01 and np.abs(other_indicator).max() < 0.01  # bands, both
+    inclined = law_band_angles(_STUDY, 60.0, 100.0, [33.0, 31.0, 33.0], [True, True, False], shear="other")[0]
+    np.testing.assert_allclose(inclined, [58.0, 55.5, 65.25], atol=0.26)  # as "own" (the test above)
+    with pytest.raises(ValueError, match="shear = 'mine'"):
+        law_band_angles(_STUDY, 0.0, 100.0, [33.0], True, shear="mine")
 
 
 def test_the_law_s_band_needs_a_biaxial_run_with_its_material(tmp_path):

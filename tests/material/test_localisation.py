@@ -155,7 +155,8 @@ def test_after_the_peak_the_law_keeps_its_band_angle_only_with_planes_every_5_de
     * ``bazant-oh-33`` (the default; normals on that ring 21-24 deg apart): the indicator falls to -1.0 (a
       strongly indefinite acoustic tensor, whose worst direction runs from 69 to 84 deg over the first
       0.5 %), and then the families split by 6 deg, one locked at 69.0-69.25 deg (the plane at 69.05) while
-      the other falls to 63 deg."""
+      the other falls to 63 deg. The split is the element shearing (the next test): the family in the sense
+      of its shear is the one locked on the plane."""
     from material import driver
     from material.factory import make_material
 
@@ -177,6 +178,43 @@ def test_after_the_peak_the_law_keeps_its_band_angle_only_with_planes_every_5_de
     assert indicator.min() < -0.9 and max(rising.max(), falling.max()) > 80.0
     assert np.abs(rising - falling).max() >= 5.0
     assert min(rising.min(), falling.min()) < roscoe - 2.5
+
+
+def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one_family_keeps_its_angle():
+    """The same sand and path at alpha = 0. The law is symmetric under x -> -x, and so is the path up to a
+    point past the peak where the two planes of a mirror pair stop loading together: one unloads, and the
+    point shears under the driver's zero shear stress, eps_xz growing from round-off (below 1e-9) to about
+    3e-3 by 5 %, in a sense that changes with the number of steps. Measured (1000 steps to 5 %, 0.005 % each):
+
+    * ``equator-78``: peak at 1.79 %, shear from 3.25 % (3.45 % with 400 steps); before it the shear
+      stiffness of the tangent, 2 D_xzxz, rises to 45.7 E (an elastic one is E / (1 + nu)): the mode in which
+      the pair softens unequally loses its stiffness. After it the family of bands in the sense of the
+      shear stays at 64.75-65.0 deg, the other falls to 59.25 deg by 5 %; before it they are one.
+    * ``bazant-oh-33`` (400 steps): the shear from 2.56 %, with no such rise of the stiffness (0.2 E at most);
+      the family in its sense at 69.0-69.25 deg (the plane at 69.05), the other falls to 59.75 deg.
+
+    The element path is thus a point inside a band sheared in one sense; the biaxial runs' arms are compared
+    with the family of the right sense (``femgran.band.law_band_angles``)."""
+    from material import driver
+    from material.factory import make_material
+
+    changes = {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}
+    for rule, steps, onset, kept, stiff in (("equator-78", 1000, (0.032, 0.033), (64.75, 65.0), True),
+                                            ("bazant-oh-33", 400, (0.025, 0.026), (69.0, 69.25), False)):
+        spec = {"preset": "ottawa_c109", "stabilisation": 0.01, "set": changes, "rule": rule}
+        res = driver.plane_strain(make_material(spec), p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.05, steps=steps)
+        ea, shear, peak = res["eps_a"], res["eps_xz"], int(np.argmax(res["q13_kPa"]))
+        start = int(np.flatnonzero(np.abs(shear) > 1e-9)[0])
+        assert onset[0] < ea[start] < onset[1] and ea[start] > ea[peak] + 0.005
+        assert abs(shear[-1]) > 2e-3
+        rising, falling = res["rice_rising_deg"], res["rice_falling_deg"]
+        np.testing.assert_array_equal(rising[peak:start], falling[peak:start])  # one angle while symmetric
+        with_shear, against = (rising, falling) if shear[-1] > 0 else (falling, rising)
+        later = ea >= ea[start] + 0.002
+        assert kept[0] <= with_shear[later].min() and with_shear[later].max() <= kept[1]
+        assert against[-1] < 60.0
+        stiffness = 2.0 * res.tangent[peak:start, 0, 2, 0, 2] / 60000.0
+        assert (stiffness.max() > 10.0) == stiff
 
 
 def test_the_element_sweep_and_its_command_report_the_onset(tmp_path, capsys):
