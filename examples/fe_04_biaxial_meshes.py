@@ -52,6 +52,7 @@ import numpy as np
 
 from femgran.band import is_zone
 from femgran.solver import History
+from femgran.sweep import STUDY_CHECKPOINT_EVERY
 from material.commandline import parse_set, with_changes
 from material.parameters import load_preset
 from material.planes import DEFAULT_RULE, available_rules, rule_info
@@ -121,7 +122,7 @@ def main(argv=None) -> dict:
                     help="the solver's step grows only after N consecutive easy steps without a cut-back "
                          "(femgran.solver.SolverOptions.easy_steps; 2 saves 40 %% of the evaluations into the "
                          "peak; default: after every easy step, which a study run before the option resumes with)")
-    ap.add_argument("--checkpoint-every", type=int, default=10, metavar="N",
+    ap.add_argument("--checkpoint-every", type=int, default=STUDY_CHECKPOINT_EVERY, metavar="N",
                     help="a checkpoint every N converged steps of each run (0: only at its end). A run on a Dask "
                          "worker cannot catch Ctrl-C or a kill: the same command again goes on from its last "
                          "checkpoint (default %(default)s)")

@@ -66,7 +66,7 @@ import numpy as np
 from material.commandline import add_out, add_progress, write_run_record
 from material.sweep import ELEMENT_TESTS, Run, grid, key_of, sweep
 
-__all__ = ["runs_for", "kinds", "case_target", "register"]
+__all__ = ["runs_for", "kinds", "case_target", "register", "STUDY_CHECKPOINT_EVERY"]
 
 _IDENTIFY = ("triaxial", "direct-shear")
 
@@ -83,14 +83,25 @@ def kinds() -> dict[str, str]:
 
 
 # ------------------------------------------------------------------------------------------ targets
+#: A study's runs write a checkpoint every this many converged steps unless told otherwise. A run on a Dask
+#: worker cannot catch Ctrl-C or the worker's end, so without them a killed study loses each running run
+#: whole; a run here in the main process checkpoints on a stop and on Ctrl-C and needs none (its command
+#: line's default is 0). Measured on the thesis sand's footing (43 steps, two checkpoints kept, the default):
+#: 2.2 MB more on disk than the final checkpoint alone, and no change of the run's time beyond its spread
+#: (11.3-12.0 s against 12.9-14.8 s without, one after the other).
+STUDY_CHECKPOINT_EVERY = 10
+
+
 def case_target(out, case: str, fields: Mapping | None = None, material=None, solver=None,
-                checkpoint_every: int = 0) -> dict:
+                checkpoint_every: int = STUDY_CHECKPOINT_EVERY) -> dict:
     """Sweep target: the boundary-value case ``case`` with ``fields`` into ``out``; returns its scalar
     summary (the case's headline and the rest of ``Solution.extra``: scalars and strings, and ``{k}_{sub}``
     for a mapping of them; ``summary.csv`` keeps the numbers, ``sweep.json`` all), ``completed``,
     ``stop_reason`` and ``steps``.
 
-    A run folder that holds a checkpoint of this run (a study interrupted mid-run) continues from it."""
+    The run writes a checkpoint every ``checkpoint_every`` converged steps (:data:`STUDY_CHECKPOINT_EVERY` by
+    default; 0: only at its end or stop), and a run folder that holds a checkpoint of this run (a study
+    interrupted mid-run, a worker killed) continues from it."""
     from femgran import checkpoint as ck
     from femgran.cases.base import Output, run
     from femgran.cases.casefile import case_types

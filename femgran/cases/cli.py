@@ -163,13 +163,14 @@ def _run_case(args, cls) -> int:
     from femgran.cases.common import solver_options
 
     out = Path(args.out)
+    Output(None, checkpoint_every=args.checkpoint_every or 0, keep_checkpoints=args.keep_checkpoints)  # checked
     key, values = _sweep_field(args, cls)
     fixed = {f.name: (v[0] if isinstance(v := getattr(args, f.name), list) else v) for f in dataclasses.fields(cls)}
     solver = solver_options(_solver_given(args))
     if key is None:
         case = cls(**fixed)
         sol = run(case, _material(args), solver=solver,
-                  output=Output(out, args.progress, checkpoint_every=args.checkpoint_every,
+                  output=Output(out, args.progress, checkpoint_every=args.checkpoint_every or 0,
                                 keep_checkpoints=args.keep_checkpoints), resume=args.resume)
         print(f"{cls.headline} = {sol.extra[cls.headline]:.4g}; {sol.stop_reason}; results in {out}")
         write_run_record(out, args, runs=[{cls.headline: sol.extra[cls.headline], "completed": sol.completed}])
@@ -186,9 +187,10 @@ def _run_study(args, cls, out: Path, key: str, values, fixed: dict, solver) -> i
     label = _flags(next(f for f in dataclasses.fields(cls) if f.name == key))[0].lstrip("-").replace("-", "_")
     for v in values:
         cls(**{**fixed, key: v})  # every run's fields checked before any runs
+    every = {} if args.checkpoint_every is None else {"checkpoint_every": args.checkpoint_every}  # else the sweep's
     runs = [Run(f"{label}_{v:g}", "femgran.sweep:case_target",
                 {"case": cls.name, "fields": {**fixed, key: v}, "material": _material(args),
-                 "solver": solver.to_dict(), "checkpoint_every": args.checkpoint_every}, {key: v}) for v in values]
+                 "solver": solver.to_dict(), **every}, {key: v}) for v in values]
     if args.resume:
         print(f"{cls.name} sweep: every run not yet complete continues from its checkpoint (--resume is implied)")
     result = sweep(runs, out, scheduler=args.scheduler, workers=args.workers, progress=args.progress,
@@ -220,10 +222,13 @@ def _checkpoint_flags(p, from_file: bool = False):
     """``--checkpoint-every`` and ``--keep-checkpoints``. With ``from_file`` (``femgran run``) they default to
     None: the case file's ``[output]`` values hold unless a flag is given (a default of 0 used to switch off the
     checkpoints a file asked for, while the run folder's copy of the file still showed them)."""
+    from femgran.sweep import STUDY_CHECKPOINT_EVERY
+
     g = p.add_argument_group("checkpoints (femgran.checkpoint)")
     every, keep = ("the case file's [output] checkpoint_every", "the file's keep_checkpoints") if from_file else \
-        ("0: at the end, on a stop or Ctrl-C only", "2")
-    g.add_argument("--checkpoint-every", type=int, default=None if from_file else 0, metavar="N",
+        ("0 for one run, which checkpoints at its end, on a stop and on Ctrl-C; "
+         f"{STUDY_CHECKPOINT_EVERY} for each run of a study, whose Dask workers cannot catch Ctrl-C", "2")
+    g.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
                    help=f"a checkpoint every N converged steps (default {every})")
     g.add_argument("--keep-checkpoints", type=int, default=None if from_file else 2, metavar="K",
                    help=f"keep the last K (default {keep})")

@@ -549,6 +549,30 @@ def test_cli_sweep_writes_one_folder_per_angle_and_a_summary(tmp_path):
     assert main(["cavity", "--p0", "0", "50", "--steps", "2", "4", "--out", str(tmp_path / "x")]) == 2
 
 
+def test_each_run_of_a_study_checkpoints_every_10_steps_unless_told_otherwise(tmp_path, capsys):
+    """A study's runs may run on Dask workers, which cannot catch Ctrl-C: by default each writes a checkpoint
+    every :data:`femgran.sweep.STUDY_CHECKPOINT_EVERY` steps (the two last kept), so a killed study goes on
+    from there; one run here checkpoints only at its end (and on a stop or Ctrl-C). A negative interval is
+    refused naming the flag's key before anything runs."""
+    from femgran.cli import main
+    from femgran.sweep import STUDY_CHECKPOINT_EVERY
+
+    cavity = ["cavity", "--law", "von_mises", "--E", "1e5", "--yield-stress", "173.2", "--steps", "12",
+              "--scheduler", "serial", "--no-progress"]
+    assert STUDY_CHECKPOINT_EVERY == 10
+    assert main(cavity + ["--p0", "0", "50", "--out", str(tmp_path / "study")]) == 0
+    for run in ("p0_0", "p0_50"):
+        kept = sorted(p.name for p in (tmp_path / "study" / run / "checkpoints").glob("*.json"))
+        assert kept == ["step_000010.json", "step_000012.json"]
+    assert main(cavity + ["--p0", "0", "50", "--checkpoint-every", "0", "--out", str(tmp_path / "end")]) == 0
+    assert [p.name for p in (tmp_path / "end" / "p0_0" / "checkpoints").glob("*.json")] == ["step_000012.json"]
+    assert main(cavity + ["--p0", "0", "--out", str(tmp_path / "one")]) == 0
+    assert [p.name for p in (tmp_path / "one" / "checkpoints").glob("*.json")] == ["step_000012.json"]
+    capsys.readouterr()
+    assert main(cavity + ["--p0", "0", "50", "--checkpoint-every", "-1", "--out", str(tmp_path / "bad")]) == 2
+    assert "checkpoint_every = -1" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+
+
 def test_weak_zone_makes_a_composite_that_keeps_failed_points(tmp_path):
     from femgran.cases.common import keep_failed_points
     from material.composite import Composite
