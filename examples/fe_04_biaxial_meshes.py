@@ -395,7 +395,8 @@ def _forming_and_final(row, window: float = 0.005) -> dict:
     are); a window without one gives its stronger arm, with ``localised`` 0 and its fitted width."""
     from femgran.band import band_history
 
-    keys = ("angle_deg", "thickness_m", "localised", "rising", "peak_width_m", "section_m", "contrast", "friction_deg")
+    keys = ("angle_deg", "thickness_m", "localised", "rising", "peak_width_m", "section_m", "contrast", "friction_deg",
+            "interior_shear")
     windows = band_history(row["folder"], window)
     if not len(windows):  # the run ended at its peak: no window after it
         return {name: {**dict.fromkeys(keys, float("nan")), "localised": 0.0, "eps": (float("nan"),) * 2}
@@ -411,7 +412,7 @@ def _forming_and_final(row, window: float = 0.005) -> dict:
 def _law_angles(row, bands: dict) -> np.ndarray:
     """The band the law forms at the friction inside the arm of the forming and the final window of
     :func:`_forming_and_final` (:func:`femgran.band.law_band_angles`, the run's material from its case.toml),
-    in each arm's sense, on the element path sheared in the arm's own sense and on the one sheared the other
+    in each arm's sense, on the element sheared as the inside of the arm is and on the one sheared the other
     way (they differ only on a mirror-symmetric bedding); NaN for a window without a friction. Prints them;
     returns (2 shears, 2 windows)."""
     from femgran.band import _law_path, _read_law, run_material
@@ -419,12 +420,12 @@ def _law_angles(row, bands: dict) -> np.ndarray:
     material, alpha, p0 = run_material(row["folder"])
     names = ("forming", "final")
     path = _law_path(material, alpha, p0, 0.08, 1600)
+    inside = np.array([bands[n]["interior_shear"] for n in names])
     out = np.full((2, 2), np.nan)
-    for k, shear in enumerate(("own", "other")):
+    for k, (shear, how) in enumerate(((inside, "as the inside of the arm"), (-inside, "the other way"))):
         angles, indicator = _read_law(path, [bands[n]["friction_deg"] for n in names],
                                       [bool(bands[n]["rising"] > 0.5) for n in names], shear)
-        print(f"  alpha {alpha:g}: the law's band at the friction inside the arm (element sheared "
-              f"{'in the arm' + chr(39) + 's sense' if shear == 'own' else 'the other way'}), "
+        print(f"  alpha {alpha:g}: the law's band at the friction inside the arm (element sheared {how}), "
               + "; ".join(f"{n} {bands[n]['friction_deg']:.1f} deg -> {v:.2f} deg, indicator {x:+.3f} (the arm "
                           f"{bands[n]['angle_deg']:.1f})" for n, v, x in zip(names, angles, indicator)), flush=True)
         # not drawn where the acoustic tensor is strongly indefinite: there its least det points nowhere in
@@ -452,7 +453,7 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
     Coulomb, Roscoe and Arthur angles from each run's own peak (an open marker: no band in that window, a
     zone or a diffuse field: :attr:`femgran.band.Band.verdict`), the other arm of the X over the whole post-peak
     increment (triangles, where there is one), the band the law itself forms at the friction inside the arm
-    in each of the two windows (crosses: on the element path sheared in the arm's sense; plus signs: sheared
+    in each of the two windows (crosses: on the element sheared as the inside of the arm; plus signs: sheared
     the other way, where that differs, on a mirror-symmetric bedding; :func:`_law_angles`), and, for ``material_spec`` (the study's sand) at its lateral
     stress ``p0_kPa``, Rice's onset on the plane-strain element path for the rising and the falling bands
     (:func:`femgran.figures.rice_onset_angles`: rate-independent, so with ``equator-78``, whose
@@ -515,9 +516,9 @@ def _plot_alpha(rows, path, material_spec: dict | None = None, p0_kPa: float = 1
             (line,) = ax.plot(a, [r["reference_angles_deg"][ref] for r in sel], style, color="k", lw=0.8, label=ref)
             legend.append((line, ref))
         legend.append((ax.scatter([], [], color="k", marker="x", s=22, lw=0.9),
-                       "x: the law's band at the friction inside the arm (Rice, element path; femgran band --law)"))
+                       "x: the law's band inside the arm (Rice, element sheared as its inside; band --law)"))
         legend.append((ax.scatter([], [], color="k", marker="+", s=30, lw=0.9),
-                       "+: the same, the element sheared the other way (alpha = 0, 90: it shears after the peak)"))
+                       "+: the same, element sheared the other way (alpha = 0, 90)"))
         if material_spec is not None:  # the law's own bands, each family (the X's arms need not be mirror images)
             from femgran.figures import rice_onset_angles
 

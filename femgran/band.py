@@ -75,7 +75,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["Band", "measure_band", "measure_arms", "band_history", "written_steps", "read_cells",
-           "deviatoric_intensity", "too_wide", "is_zone", "FAMILIES", "CONTRAST", "MAX_WIDTH_FRACTION"]
+           "deviatoric_intensity", "interior_shear", "law_band_angles", "too_wide", "is_zone", "FAMILIES", "CONTRAST",
+           "MAX_WIDTH_FRACTION"]
 
 #: The families of band orientations :func:`measure_band` searches: both, or the band's direction rising
 #: (0 to 90 deg from the x axis) or falling (90 to 180 deg).
@@ -440,11 +441,12 @@ and a window longer than the whole post-peak path is that path). In each, the in
     NaN for a series without the cell field ``stress``) and ``dilatancy_deg`` (the strain increment over the
     window), of :func:`in_band_state`: the arm's own
     Coulomb (45 + phi / 2) and Roscoe (45 + psi / 2) angles as it runs, where the run's peak gives them once.
+    ``interior_shear``: the shear strain increment inside the arm away from the other (:func:`interior_shear`).
     ``law=True`` adds ``law_angle_deg`` and ``law_indicator`` (and ``conjugate_``): the band the law itself forms
-    at the friction inside each arm, in the arm's sense, on the element path sheared in that sense
+    at the friction inside each arm, in the arm's sense, on the element sheared as the inside of the arm is
     (:func:`law_band_angles`, the run's material from its ``case.toml``, :func:`run_material`; a biaxial run
-    only), and ``law_other_angle_deg``, ``law_other_indicator`` on the path sheared the other way (the two
-    differ only on a mirror-symmetric bedding).
+    only), and ``law_other_angle_deg``, ``law_other_indicator`` on the element sheared the other way (the
+    two differ only on a mirror-symmetric bedding).
     ``femgran band RUN_FOLDER [--law]`` writes it as ``band_history.csv``.
     """
     from material.table import Table
@@ -480,9 +482,10 @@ and a window longer than the whole post-peak path is that path). In each, the in
         _, e1, size, stress = cells(i1)
         band, other = measure_arms(x, deviatoric_intensity(e1 - e0), element_size=size)
         row = {"eps_from": w_eps[i0], "eps_to": w_eps[i1], "q_from_kPa": w_q[i0], "q_to_kPa": w_q[i1]}
-        for prefix, b in (("", band), ("conjugate_", other)):
+        for prefix, b, o in (("", band, other), ("conjugate_", other, band)):
             friction, dilatancy, _ = in_band_state(x, b, stress, e1 - e0, tuple(sides))
-            row.update({f"{prefix}friction_deg": friction, f"{prefix}dilatancy_deg": dilatancy})
+            row.update({f"{prefix}friction_deg": friction, f"{prefix}dilatancy_deg": dilatancy,
+                        f"{prefix}interior_shear": interior_shear(x, b, o, e1 - e0)})
             row.update({f"{prefix}angle_deg": b.angle_deg, f"{prefix}thickness_m": b.thickness_m,
                         f"{prefix}contrast": b.contrast, f"{prefix}localised": float(b.localised),
                         f"{prefix}rising": float(b.rising), f"{prefix}peak_width_m": b.peak_width_m,
@@ -494,12 +497,13 @@ and a window longer than the whole post-peak path is that path). In each, the in
     if of_law is not None and len(table):
         law_path = _law_path(*of_law, axial_strain=0.08, steps=1600)
         for prefix in ("", "conjugate_"):
-            for shear, tag, sheared in (("own", "", "in the arm's own sense"), ("other", "other_", "the other way")):
-                angle, indicator = _read_law(law_path, table[f"{prefix}friction_deg"], table[f"{prefix}rising"] > 0.5,
-                                             shear)
+            arms = (table[f"{prefix}friction_deg"], table[f"{prefix}rising"] > 0.5)
+            for tag, shear, sheared in (("", table[f"{prefix}interior_shear"], "as the inside of the arm"),
+                                        ("other_", -table[f"{prefix}interior_shear"], "the other way")):
+                angle, indicator = _read_law(law_path, *arms, shear)
                 table.add_column(f"{prefix}law_{tag}angle_deg", angle,
                                  "the band of the law at the friction inside the arm, in its sense, on the element "
-                                 f"path sheared {sheared} (Rice's condition, femgran.band.law_band_angles) [deg]")
+                                 f"sheared {sheared} (Rice's condition, femgran.band.law_band_angles) [deg]")
                 table.add_column(f"{prefix}law_{tag}indicator", indicator,
                                  "Rice's indicator of that family there (about 0: a band forms; near -1: no band "
                                  "to compare with) [-]")
@@ -600,6 +604,29 @@ def in_band_state(centres, band: "Band", stress, d_strain, sides: tuple[float, f
     return friction, dilatancy, int(sel.sum())
 
 
+def interior_shear(centres, band: "Band", other: "Band", d_strain) -> float:
+    """The mean shear strain increment d eps_xy inside a band, away from the other arm of its X: the cells
+    whose centre lies within half the band's thickness of its centre line and not within half the other
+    arm's of the other's (where both arms shear the cells are neither's), over the whole specimen
+    (``d_strain`` tension positive, x to the right, y up). NaN where the band is :meth:`Band.none` or no cell
+    qualifies.
+
+    Its sign is the sense in which the inside of the band shears, which is not the band's own: a jump of
+    slip c at the dilatancy angle psi across a band at theta from x makes d eps_xy = -c cos(2 theta - psi) / 2
+    inside it, so a rising band steeper than 45 + psi / 2 (its Roscoe angle) shears its inside positively,
+    a flatter one negatively (:func:`law_band_angles` reads the law's band on an element sheared that way)."""
+    if not np.isfinite(band.thickness_m):
+        return float("nan")
+    c = np.asarray(centres, dtype=float)
+    d = np.asarray(band.direction, dtype=float)
+    across = (c - np.asarray(band.centre)) @ np.array([-d[1], d[0]])
+    sel = np.abs(across) <= 0.5 * band.thickness_m
+    if np.isfinite(other.thickness_m):
+        e = np.asarray(other.direction, dtype=float)
+        sel &= np.abs((c - np.asarray(other.centre)) @ np.array([-e[1], e[0]])) > 0.5 * other.thickness_m
+    return float(np.asarray(d_strain)[sel][:, 0, 1].mean()) if sel.any() else float("nan")
+
+
 def deviatoric_intensity(d_strain) -> np.ndarray:
     """sqrt(2 e : e) of the deviatoric part e of strain increments (N, 3, 3): the band's intensity."""
     d = np.asarray(d_strain, dtype=float)
@@ -607,10 +634,7 @@ def deviatoric_intensity(d_strain) -> np.ndarray:
     return np.sqrt(2.0 * np.einsum("nij,nij->n", dev, dev))
 
 
-_SHEAR_SENSES = ("own", "other")
-
-
-def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *, shear: str = "own",
+def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, rising, *, interior_shear=None,
                     axial_strain: float = 0.08, steps: int = 1600) -> tuple[np.ndarray, np.ndarray]:
     """The band the law itself would form at a given mobilised friction after the peak: Rice's condition on
     the plane-strain element path of the same material (:func:`material.driver.plane_strain`, the lateral
@@ -624,12 +648,14 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     alpha = 90 with ``equator-78`` and at alpha = 0 with the default rule, just past the peak) and the
     direction of its least det is no band to compare with.
 
-    ``shear`` says which of two bands where the bedding is mirror-symmetric (alpha = 0 or 90 deg): there
-    the element shears after the peak, in a sense the loading does not set (the driver's docstring), and the
-    family of bands in the sense of its shear keeps its angle while the other family turns. ``"own"`` reads
-    each arm as if the element had sheared in the arm's own sense, the sense in which the inside of a band
-    shears (eps_xz > 0 inside a band rising toward +x), ``"other"`` as if it had sheared the other way: one
-    path and its mirror image give both. On a bedding that is not mirror-symmetric the two agree.
+    ``interior_shear`` (one per friction, or one for all) is the shear strain inside each arm, or its sign
+    (d eps_xy, tension positive, x to the right, y up: :func:`interior_shear`). Where the bedding is
+    mirror-symmetric (alpha = 0 or 90 deg) the element shears after the peak, in a sense its loading does not
+    set (the driver's docstring); the family of bands in the sense of its shear keeps its angle, the other
+    turns. Each arm is then read on the element sheared as the inside of the arm is (the path, or its mirror
+    image, which exchanges the rising and the falling family). None: as the inside of a band steeper than its
+    Roscoe angle shears (positive for a rising band, negative for a falling one). On a bedding that is not
+    mirror-symmetric it changes nothing.
 
     This is how to tell a band the law selects from one the boundary-value problem adds: the arms of the
     biaxial runs with ``equator-78`` follow it within about 1 deg as they soften, at the friction measured
@@ -638,15 +664,14 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     crack band, back stress) are dropped, its step stabilisation is kept (the runs' algorithmic tangent).
     The path runs ``steps`` steps to ``axial_strain`` (0.005 % each by default: the angles are those of 1600
     steps to 0.25 deg)."""
-    if shear not in _SHEAR_SENSES:
-        raise ValueError(f"shear = {shear!r}: allowed {', '.join(map(repr, _SHEAR_SENSES))}")
-    return _read_law(_law_path(material, alpha_deg, p0_kPa, axial_strain, steps), friction_deg, rising, shear)
+    path = _law_path(material, alpha_deg, p0_kPa, axial_strain, steps)
+    return _read_law(path, friction_deg, rising, interior_shear)
 
 
 def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
     """The element path of :func:`law_band_angles`: (its result, the mobilised friction [deg] per row, its peak
-    row, its shear sense after the peak: +1 toward rising bands, -1 toward falling ones, 0 where the
-    bedding is not mirror-symmetric, so that the path has no mirror image to read)."""
+    row, the sign of its shear after the peak where the bedding is mirror-symmetric, else 0: a path with no
+    mirror image to read)."""
     from material import driver
     from material.factory import LENGTH_KEYS, make_material
 
@@ -668,22 +693,26 @@ def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
     return res, mobilised, peak, sense
 
 
-def _read_law(path, friction_deg, rising, shear):
-    """(angles, indicators) of :func:`law_band_angles` read on its path: on a mirror-symmetric bedding each arm
-    reads the family in the sense of the path's shear (``"own"``) or the other one (``"other"``), which is
-    the arm's family on the path sheared in the arm's own sense or the other way, by the mirror image."""
+def _read_law(path, friction_deg, rising, interior_shear=None):
+    """(angles, indicators) of :func:`law_band_angles` on its path: each arm in its own family, on the path
+    where the path shears as the arm's inside does (or where the path has no mirror image), else in the
+    other family, which is the arm's own on the mirror image of the path."""
     res, mobilised, peak, sense = path
     friction = np.atleast_1d(np.asarray(friction_deg, dtype=float))
     arms = np.broadcast_to(np.asarray(rising, dtype=bool), friction.shape)
+    if interior_shear is None:
+        inside = np.where(arms, 1.0, -1.0)
+    else:
+        inside = np.broadcast_to(np.asarray(interior_shear, dtype=float), friction.shape)
     angle, indicator = np.full(friction.shape, np.nan), np.full(friction.shape, np.nan)
     after = np.arange(len(mobilised)) >= peak
-    for k, (phi, up) in enumerate(zip(friction, arms)):
-        if not np.isfinite(phi):
+    for k, (phi, up, shear) in enumerate(zip(friction, arms, inside)):
+        if not (np.isfinite(phi) and np.isfinite(shear)):
             continue
         rows = np.flatnonzero(after & (mobilised <= phi)) if phi < mobilised[peak] else np.array([peak])
         if rows.size:
-            if sense != 0.0:  # the family with the shear, or against it
-                up = (sense > 0.0) == (shear == "own")
+            if sense * shear < 0.0:  # the arm's family on the mirror image: the other family here
+                up = not up
             family = "rice_rising_" if up else "rice_falling_"
             angle[k], indicator[k] = res[family + "deg"][rows[0]], res[family + "indicator"][rows[0]]
     return angle, indicator

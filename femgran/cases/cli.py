@@ -443,8 +443,8 @@ def _band_history(args) -> int:
     path = table.write_csv(Path(args.run_folder) / "band_history.csv")
     print(f"{'axial strain [%]':>18} {'q [kPa]':>15}   band: angle [deg], thickness [mm], contrast, "
           f"heights where it meets the left / right side [mm], friction / dilatancy inside it [deg]"
-          + (", the law's band at that friction [deg] (its Rice indicator) / the same, the element sheared the "
-             "other way" if args.law else "") + "   | other arm")
+          + (", the law's band at that friction, the element sheared as the inside of the arm [deg] (its Rice "
+             "indicator) / sheared the other way" if args.law else "") + "   | other arm")
     for r in table.rows():
         arms = []
         for prefix in ("", "conjugate_"):
@@ -522,8 +522,8 @@ def register(subparsers) -> None:
     p.add_argument("--law", action="store_true",
                    help="beside each arm, the band the law itself forms at the friction inside it (Rice's condition "
                         "on the plane-strain element path of the run's material, femgran.band.law_band_angles; "
-                        "a biaxial run whose case.toml holds its material), with the element sheared in the arm's "
-                        "own sense and, after a slash, the other way (they differ at alpha = 0 and 90 deg)")
+                        "a biaxial run whose case.toml holds its material), with the element sheared as the inside "
+                        "of the arm and, after a slash, the other way (they differ at alpha = 0 and 90 deg)")
     p.set_defaults(func=_band_history)
 
     p = subparsers.add_parser("run", help="run a case file (TOML)", formatter_class=fmt,

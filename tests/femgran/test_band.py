@@ -179,10 +179,11 @@ def test_the_biaxial_runs_say_band_or_no_band(tmp_path):
     # --law: the law's own band at the friction inside each arm, in the arm's sense, from the run's case.toml
     from femgran.band import law_band_angles
 
-    law, indicator = law_band_angles(_SOFTENING, 0.0, 100.0, windows["friction_deg"], windows["rising"] > 0.5)
+    arms = (windows["friction_deg"], windows["rising"] > 0.5)
+    law, indicator = law_band_angles(_SOFTENING, 0.0, 100.0, *arms, interior_shear=windows["interior_shear"])
     np.testing.assert_array_equal(windows["law_angle_deg"], law)
     np.testing.assert_array_equal(windows["law_indicator"], indicator)
-    other, _ = law_band_angles(_SOFTENING, 0.0, 100.0, windows["friction_deg"], windows["rising"] > 0.5, shear="other")
+    other, _ = law_band_angles(_SOFTENING, 0.0, 100.0, *arms, interior_shear=-windows["interior_shear"])
     np.testing.assert_array_equal(windows["law_other_angle_deg"], other)
     assert np.isfinite(law).any() and "conjugate_law_angle_deg" in windows and "conjugate_law_other_indicator" in windows
     assert np.allclose(windows["eps_from"][1:], windows["eps_to"][:-1])  # consecutive windows
@@ -231,28 +232,30 @@ def test_the_law_s_own_band_at_the_friction_inside_an_arm():
         law_band_angles("ottawa_c109", 60.0, 100.0, [33.0], True)
 
 
-def test_on_a_mirror_symmetric_bedding_the_law_s_band_depends_on_the_sense_in_which_the_element_shears():
+def test_on_a_mirror_symmetric_bedding_the_law_s_band_depends_on_how_the_inside_of_the_arm_shears():
     """At alpha = 0 the element path shears after the peak (from 3.25 % axial strain, 1.45 % past the peak,
     docs/regularisation.md, section 4), in a sense its loading does not set: the family of bands in the sense
-    of the shear keeps its angle, the other turns. Measured: at 36.5 / 35 / 34 deg of friction, the family
-    with the shear at 65.0 / 64.75 / 64.75 deg, the one against it at 61.5 / 59.75 / 58.5. By the mirror image
-    a rising and a falling arm read the same in each sense. At alpha = 60 the element shears from the start
-    and the two answers are one."""
+    of the shear keeps its angle, the other turns. An arm is read on the element sheared as its inside is.
+    Measured: at 36.5 / 35 / 34 deg of friction, a rising arm sheared positively inside (as by default: a
+    band steeper than its Roscoe angle) 65.0 / 64.75 / 64.75 deg, sheared negatively 61.5 / 59.75 / 58.5; a
+    falling arm the same with the signs exchanged (the mirror image). At alpha = 60 the element shears from
+    the start and the sign changes nothing."""
     from femgran.band import law_band_angles
 
     friction = [36.5, 35.0, 34.0] * 2
     rising = [True] * 3 + [False] * 3
-    own, own_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising)
-    other, other_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising, shear="other")
-    np.testing.assert_array_equal(own[:3], own[3:])  # mirror images
-    np.testing.assert_array_equal(other[:3], other[3:])
-    np.testing.assert_allclose(own[:3], [65.0, 64.75, 64.75], atol=0.26)
-    np.testing.assert_allclose(other[:3], [61.5, 59.75, 58.5], atol=0.26)
-    assert np.abs(own_indicator).max() < 0.01 and np.abs(other_indicator).max() < 0.01  # bands, both
-    inclined = law_band_angles(_STUDY, 60.0, 100.0, [33.0, 31.0, 33.0], [True, True, False], shear="other")[0]
-    np.testing.assert_allclose(inclined, [58.0, 55.5, 65.25], atol=0.26)  # as "own" (the test above)
-    with pytest.raises(ValueError, match="shear = 'mine'"):
-        law_band_angles(_STUDY, 0.0, 100.0, [33.0], True, shear="mine")
+    default, _ = law_band_angles(_STUDY, 0.0, 100.0, friction, rising)
+    kept, kept_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising, interior_shear=[1e-3] * 3 + [-1e-3] * 3)
+    turned, turned_indicator = law_band_angles(_STUDY, 0.0, 100.0, friction, rising, interior_shear=[-1.0] * 3 + [1.0] * 3)
+    np.testing.assert_array_equal(default, kept)
+    np.testing.assert_array_equal(kept[:3], kept[3:])  # mirror images
+    np.testing.assert_array_equal(turned[:3], turned[3:])
+    np.testing.assert_allclose(kept[:3], [65.0, 64.75, 64.75], atol=0.26)
+    np.testing.assert_allclose(turned[:3], [61.5, 59.75, 58.5], atol=0.26)
+    assert np.abs(kept_indicator).max() < 0.01 and np.abs(turned_indicator).max() < 0.01  # bands, both
+    inclined = law_band_angles(_STUDY, 60.0, 100.0, [33.0, 31.0, 33.0], [True, True, False], interior_shear=-1.0)[0]
+    np.testing.assert_allclose(inclined, [58.0, 55.5, 65.25], atol=0.26)  # as the test above
+    assert np.isnan(law_band_angles(_STUDY, 0.0, 100.0, [35.0], True, interior_shear=np.nan)[0]).all()
 
 
 def test_the_law_s_band_needs_a_biaxial_run_with_its_material(tmp_path):
@@ -387,3 +390,35 @@ def test_in_band_state_reads_friction_and_dilatancy_inside_the_band_only():
     phi, psi = mobilised_angles(300.0, 100.0, 0.004, -0.002)
     assert phi == pytest.approx(30.0, abs=1e-12) and psi == pytest.approx(np.degrees(np.arcsin(-1 / 3)), abs=1e-12)
     assert np.isnan(mobilised_angles(100.0, -100.0, 0.001, 0.001)).all()
+
+
+def test_the_inside_of_a_band_shears_with_the_sign_of_its_angle_against_its_roscoe_angle():
+    """A jump of slip c at the dilatancy angle psi across a band at theta from x strains its inside by
+    sym(n x g): d eps_xy = -c cos(2 theta - psi) / 2, positive in a rising band steeper than 45 + psi / 2 and
+    negative in a flatter one (:func:`femgran.band.interior_shear`); the cells where the other arm of an X
+    crosses are left out. The biaxial runs bear it out (docs/regularisation.md, section 4: at alpha = 0 the
+    rising arms at 66.1-66.5 deg, above their Roscoe angle, shear their inside positively; at alpha = 90 the
+    arms at 49-53 deg, below it, negatively)."""
+    from femgran.band import Band, interior_shear
+
+    xs = np.linspace(-0.05, 0.05, 101)
+    centres = np.array([(x, y) for x in xs for y in xs])
+    c, width = 1e-3, 0.01
+    for theta, psi in ((66.0, 36.0), (66.0, 45.0), (50.0, 30.0), (70.0, 0.0)):
+        t = np.array([np.cos(np.radians(theta)), np.sin(np.radians(theta))])
+        n = np.array([-t[1], t[0]])
+        g = c * (-np.cos(np.radians(psi)) * t + np.sin(np.radians(psi)) * n)  # down along the band, opening
+        strain = np.zeros((len(centres), 3, 3))
+        inside = np.abs(centres @ n) <= 0.5 * width
+        strain[inside, :2, :2] = 0.5 * (np.outer(n, g) + np.outer(g, n))
+        # the conjugate arm, mirror image, through the same centre: its cells are left out
+        m = np.array([t[1], t[0]])  # normal of the mirror band (direction (-t_x, t_y))
+        crossing = np.abs(centres @ m) <= 0.5 * width
+        strain[crossing & ~inside] = 0.0
+        strain[crossing & inside] = 99.0  # neither arm's: must not count
+        band = Band(theta, tuple(t), (0.0, 0.0), width, 5.0, True, (np.zeros(0),) * 3)
+        other = Band(theta, (-t[0], t[1]), (0.0, 0.0), width, 5.0, True, (np.zeros(0),) * 3)
+        expected = -0.5 * c * np.cos(np.radians(2.0 * theta - psi))
+        assert interior_shear(centres, band, other, strain) == pytest.approx(expected, rel=1e-12)
+        assert np.sign(expected) == np.sign(theta - (45.0 + psi / 2.0))
+        assert np.isnan(interior_shear(centres, Band.none(), other, strain))
