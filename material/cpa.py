@@ -742,8 +742,15 @@ class CPAModel:
         now, with a softening law: with the first version of the continuation (a Python loop over the failed
         points' arrays, about 2 s per point) the crack-band biaxial study of the tests (``fe_04``) had 1 to 21
         points past their limit in 23 steps and took 125 s instead of 17 s, where the global cut-backs had
-        carried those points past their peak before; with the numba version (milliseconds per point) its
-        effect on the softening studies has not been measured."""
+        carried those points past their peak before. With the numba version (milliseconds per point), measured
+        on 2026-12-07 with the continuation switched on for the softening law of the shear-band study
+        (``zeta`` 1.05, ``softening_slip`` 0.03, associated, no stabilisation): the crack-band biaxial run on
+        12 elements to 6 % (``fe_04 --resolutions 12 --variants regularised --stabilisation 0``) still stops,
+        at t = 0.441 instead of 0.428, in 33.2 s instead of 18.8 s; on the plane-strain element path with
+        ``equator-78`` (400 steps to 5 %) alpha = 60 deg goes on to 5 % where it stops at its peak without,
+        while alpha = 0 and 30 deg stop at their peak either way (76 of the 78 planes load there; the branch
+        of the driver's small increments folds at 0.2-0.9 of them and the continuation from the limit state
+        fails in turn). Not enough to switch it on."""
         return not self.rate_dependent and self._nonlocal_length is None and self.params.softening_slip == 0.0
 
     def _post_peak_strain(self, kappa) -> np.ndarray:
