@@ -187,8 +187,8 @@ def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one
     3e-3 by 5 %, in a sense that changes with the number of steps. Measured (1000 steps to 5 %, 0.005 % each):
 
     * ``equator-78``: peak at 1.79 %, shear from 3.25 % (3.45 % with 400 steps); before it the shear
-      stiffness of the tangent, 2 D_xzxz, rises to 45.7 E (an elastic one is E / (1 + nu)): the mode in which
-      the pair softens unequally loses its stiffness. After it the family of bands in the sense of the
+      stiffness of the tangent, 2 D_xzxz, rises to 45.7 E (an elastic one is E / (1 + nu)): the coupling of the
+      pair's rate problem is nearly singular in the mode in which the two slip unequally. After it the family of bands in the sense of the
       shear stays at 64.75-65.0 deg, the other falls to 59.25 deg by 5 %; before it they are one.
     * ``bazant-oh-33`` (400 steps): the shear from 2.56 %, with no such rise of the stiffness (0.2 E at most);
       the family in its sense at 69.0-69.25 deg (the plane at 69.05), the other falls to 59.75 deg.
