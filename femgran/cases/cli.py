@@ -450,7 +450,7 @@ def _band_history(args) -> int:
         for prefix in ("", "conjugate_"):
             if r[prefix + "localised"]:
                 arms.append(f"{r[prefix + 'angle_deg']:5.1f} {'rising' if r[prefix + 'rising'] else 'falling':7s} "
-                            f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.2f} "
+                            f"{1e3 * r[prefix + 'thickness_m']:5.1f} {r[prefix + 'contrast']:5.3g} "
                             f"{1e3 * r[prefix + 'left_y_m']:6.1f} / {1e3 * r[prefix + 'right_y_m']:6.1f} "
                             f"{r[prefix + 'friction_deg']:5.1f} / {r[prefix + 'dilatancy_deg']:5.1f}"
                             + (f"  law {r[prefix + 'law_angle_deg']:5.1f} ({r[prefix + 'law_indicator']:+.3f}) / "
