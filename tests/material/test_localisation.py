@@ -184,7 +184,10 @@ def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one
     """The same sand and path at alpha = 0. The law is symmetric under x -> -x, and so is the path up to a
     point past the peak where the two planes of a mirror pair stop loading together: one unloads, and the
     point shears under the driver's zero shear stress, eps_xz growing from round-off (below 1e-9) to about
-    3e-3 by 5 %, in a sense that changes with the number of steps. Measured (1000 steps to 5 %, 0.005 % each):
+    3e-3 by 5 %, in a sense that changes with the number of steps. It grows with its sign alternating from step
+    to step (by 1.6 to 2.2 times a step: the implicit step of a mode that is unstable), so where it starts
+    depends a little on the size of the round-off, more with the default rule, which has no fold to end the
+    symmetric path (the windows below). Measured (1000 steps to 5 %, 0.005 % each):
 
     * ``equator-78``: peak at 1.79 %, shear from 3.25 % (3.45 % with 400 steps); before it the shear
       stiffness of the tangent, 2 D_xzxz, rises to 45.7 E (an elastic one is E / (1 + nu)): the coupling of the
@@ -200,7 +203,7 @@ def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one
 
     changes = {"E": 60000.0, "zeta": 1.05, "softening_slip": 0.03, "residual_ratio": 0.65, "eta_c_ratio": 0.0}
     for rule, steps, onset, kept, stiff in (("equator-78", 1000, (0.032, 0.033), (64.75, 65.0), True),
-                                            ("bazant-oh-33", 400, (0.025, 0.026), (69.0, 69.25), False)):
+                                            ("bazant-oh-33", 400, (0.024, 0.027), (69.0, 69.25), False)):
         spec = {"preset": "ottawa_c109", "stabilisation": 0.01, "set": changes, "rule": rule}
         res = driver.plane_strain(make_material(spec), p0_kPa=100.0, alpha_deg=0.0, axial_strain=0.05, steps=steps)
         ea, shear, peak = res["eps_a"], res["eps_xz"], int(np.argmax(res["q13_kPa"]))
