@@ -664,8 +664,11 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
     crack band, back stress) are dropped, its step stabilisation is kept (the runs' algorithmic tangent).
     The path runs ``steps`` steps to ``axial_strain`` (0.005 % each by default: the angles are those of 1600
     steps to 0.25 deg)."""
-    path = _law_path(material, alpha_deg, p0_kPa, axial_strain, steps)
-    return _read_law(path, friction_deg, rising, interior_shear)
+    shape = np.atleast_1d(np.asarray(friction_deg, dtype=float)).shape  # the inputs checked before the path runs
+    _per_friction("rising", rising, shape, bool)
+    if interior_shear is not None:
+        _per_friction("interior_shear", interior_shear, shape, float)
+    return _read_law(_law_path(material, alpha_deg, p0_kPa, axial_strain, steps), friction_deg, rising, interior_shear)
 
 
 def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
@@ -699,11 +702,9 @@ def _read_law(path, friction_deg, rising, interior_shear=None):
     other family, which is the arm's own on the mirror image of the path."""
     res, mobilised, peak, sense = path
     friction = np.atleast_1d(np.asarray(friction_deg, dtype=float))
-    arms = np.broadcast_to(np.asarray(rising, dtype=bool), friction.shape)
-    if interior_shear is None:
-        inside = np.where(arms, 1.0, -1.0)
-    else:
-        inside = np.broadcast_to(np.asarray(interior_shear, dtype=float), friction.shape)
+    arms = _per_friction("rising", rising, friction.shape, bool)
+    inside = np.where(arms, 1.0, -1.0) if interior_shear is None else \
+        _per_friction("interior_shear", interior_shear, friction.shape, float)
     angle, indicator = np.full(friction.shape, np.nan), np.full(friction.shape, np.nan)
     after = np.arange(len(mobilised)) >= peak
     for k, (phi, up, shear) in enumerate(zip(friction, arms, inside)):
@@ -716,6 +717,16 @@ def _read_law(path, friction_deg, rising, interior_shear=None):
             family = "rice_rising_" if up else "rice_falling_"
             angle[k], indicator[k] = res[family + "deg"][rows[0]], res[family + "indicator"][rows[0]]
     return angle, indicator
+
+
+def _per_friction(key: str, value, shape, dtype) -> np.ndarray:
+    """``value`` as one entry per friction: one value for all, or an array of the frictions' shape."""
+    v = np.asarray(value, dtype=dtype)
+    if v.size == 1:
+        return np.full(shape, v.reshape(-1)[0], dtype=dtype)
+    if v.shape != shape:
+        raise ValueError(f"{key}: shape {v.shape}; allowed one value or one per friction, {shape}")
+    return v
 
 
 def run_material(run_folder) -> tuple[dict, float, float]:

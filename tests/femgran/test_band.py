@@ -256,6 +256,8 @@ def test_on_a_mirror_symmetric_bedding_the_law_s_band_depends_on_how_the_inside_
     inclined = law_band_angles(_STUDY, 60.0, 100.0, [33.0, 31.0, 33.0], [True, True, False], interior_shear=-1.0)[0]
     np.testing.assert_allclose(inclined, [58.0, 55.5, 65.25], atol=0.26)  # as the test above
     assert np.isnan(law_band_angles(_STUDY, 0.0, 100.0, [35.0], True, interior_shear=np.nan)[0]).all()
+    with pytest.raises(ValueError, match=r"interior_shear: shape \(2,\); allowed one value or one per friction"):
+        law_band_angles(_STUDY, 0.0, 100.0, [35.0, 34.0, 33.0], True, interior_shear=[1.0, -1.0])
 
 
 def test_the_law_s_band_needs_a_biaxial_run_with_its_material(tmp_path):
