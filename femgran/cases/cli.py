@@ -163,7 +163,8 @@ def _run_case(args, cls) -> int:
     from femgran.cases.common import solver_options
 
     out = Path(args.out)
-    Output(None, checkpoint_every=args.checkpoint_every or 0, keep_checkpoints=args.keep_checkpoints)  # flags checked first
+    # the checkpoint flags checked before anything runs
+    Output(None, checkpoint_every=args.checkpoint_every or 0, keep_checkpoints=args.keep_checkpoints)
     key, values = _sweep_field(args, cls)
     fixed = {f.name: (v[0] if isinstance(v := getattr(args, f.name), list) else v) for f in dataclasses.fields(cls)}
     solver = solver_options(_solver_given(args))
