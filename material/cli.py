@@ -75,6 +75,9 @@ def register(subparsers) -> None:
     g = common.add_argument_group("material and output")
     add_parameters(g, preset_default=None)  # default ottawa_c109; ottawa_c109_induced for rotation
     g.add_argument("--rule", default="bazant-oh-33", help="plane integration rule (material.planes.available_rules())")
+    g.add_argument("--stabilisation", type=float, default=0.0, metavar="MU",
+                   help="the CPA step stabilisation (default 0: the thesis's law; the FE cases' --stabilisation, "
+                        "docs/cpa_law.md section 4)")
     g.add_argument("--steps", type=int, default=None, help="load steps of the main stage (default: the driver's)")
     add_out(g, "out/element")
     add_progress(g)
@@ -149,7 +152,8 @@ def _material_spec(args) -> dict:
     spec = {"parameters": str(Path(args.params).resolve())} if args.params else \
         {"preset": args.preset or ("ottawa_c109_induced" if args.test == "rotation" else "ottawa_c109")}
     changes = parse_set(args.set)
-    return {**spec, **({"set": changes} if changes else {}), "rule": args.rule}
+    stabilised = {"stabilisation": args.stabilisation} if args.stabilisation else {}
+    return {**spec, **({"set": changes} if changes else {}), "rule": args.rule, **stabilised}
 
 
 def _runs(args) -> list:
@@ -185,6 +189,10 @@ def _run(args) -> int:
     from material.version import __version__
 
     params = _parameters(args)  # checks the preset, file and --set before anything runs
+    if args.stabilisation:
+        from material.factory import make_material
+
+        make_material({"preset": "ottawa_c109", "stabilisation": args.stabilisation})  # and the stabilisation
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     stem = args.test.replace("-", "_")
@@ -232,6 +240,10 @@ def _summary(tag: str, res) -> str:
         bits.append("elliptic throughout (no band by Rice's condition)" if onset is None else
                     f"a band can form from eps_a = {onset['eps_a']:.4g} (q13 = {onset['q13_kPa']:.4g} kPa), "
                     f"inclined {onset['band_deg']:.1f} deg to the sigma3 axis" + _family(onset))
+    sheared = res.metadata.get("shear_onset")
+    if sheared is not None:
+        bits.append(f"the symmetric path branches at eps_a = {sheared['eps_a']:.4g}: the point shears "
+                    f"(eps_xz {'> 0' if sheared['sense'] > 0 else '< 0'} after it, a sense round-off decides)")
     if not res.completed:
         bits.append("STOPPED EARLY")
     return ", ".join(bits)

@@ -897,12 +897,14 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     on each step's tangent: ``rice_indicator`` (< 0: a band can form), ``rice_band_deg``, and
     ``metadata["bifurcation"]``, the onset (:func:`_bifurcation`; ``docs/regularisation.md``, section 4).
 
-    Where the bedding is mirror-symmetric about the axes (alpha = 0 or 90 deg) and the law softens, the path
-    branches after the peak: the two planes of a mirror pair stop loading together, one unloads, and the
+    Where the bedding is mirror-symmetric about the axes (alpha = 0 or 90 deg) and the law softens with the
+    step stabilisation, the path branches after the peak: the two planes of a mirror pair stop loading together, one unloads, and the
     point shears, eps_xz growing from round-off to about 1e-2 by 8 % axial strain. The sense of that shear
     is not set by the loading (it changes with the number of steps); the mirror image of the path is the
     path sheared the other way, with the rising and falling columns exchanged (``docs/regularisation.md``,
-    section 4, "The element path shears after the peak").
+    section 4, "The element path shears after the peak"). ``metadata["shear_onset"]`` says where
+    (:func:`_shear_onset`; None where the path keeps its symmetry or the bedding has none). The
+    rate-independent law keeps the symmetric path (measured at alpha = 0 and 90 deg).
     """
     p0 = check_positive("p0_kPa", p0_kPa)
     ea = check_positive("axial_strain", axial_strain)
@@ -920,8 +922,31 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     onset = _bifurcation(res)
     return _finish(res, "plane_strain", params,
                    {"p0_kPa": p0, "alpha_deg": float(alpha_deg), "axial_strain": ea, "steps": steps,
-                    "bifurcation": onset},
+                    "bifurcation": onset, "shear_onset": _shear_onset(res, alpha_deg)},
                    [("eps_a", "q13_kPa"), ("eps_a", "eps_v"), ("eps_a", "rice_indicator")])
+
+
+#: The shear strain at which a mirror-symmetric path counts as sheared (:func:`_shear_onset`), as a fraction of
+#: the axial strain: ten orders of magnitude above the round-off the shear grows from (1e-17 to 1e-11 before
+#: it grows, measured), three to four below what it grows to (1e-3 to 1e-2). The shear grows by 1.6 to 2.2
+#: times a step and then jumps by three orders in one, so any fraction between 1e-9 and 1e-4 gives the same
+#: row within a few steps (``docs/regularisation.md``, section 4).
+SHEAR_ONSET = 1e-6
+
+
+def _shear_onset(res: ElementResult, alpha_deg: float) -> dict | None:
+    """Where a plane-strain path on a mirror-symmetric bedding (alpha = 0 or 90 deg), which by symmetry keeps
+    eps_xz = 0, shears: the first row where |eps_xz| exceeds :data:`SHEAR_ONSET` of the axial strain, its
+    axial strain, q13 and the sign of the shear (the sense, which round-off decides). None where the path
+    keeps its symmetry, or where the bedding has none (it shears from the start)."""
+    if float(alpha_deg) % 90.0 != 0.0:
+        return None
+    shear, ea = res["eps_xz"], res["eps_a"]
+    rows = np.flatnonzero(np.abs(shear) > SHEAR_ONSET * np.abs(ea))
+    if rows.size == 0:
+        return None
+    i = int(rows[0])
+    return {"row": i, "eps_a": float(ea[i]), "q13_kPa": float(res["q13_kPa"][i]), "sense": float(np.sign(shear[-1]))}
 
 
 def _bifurcation(res: ElementResult) -> dict | None:

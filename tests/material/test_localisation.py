@@ -181,7 +181,9 @@ def test_after_the_peak_the_law_keeps_its_band_angle_only_with_planes_every_5_de
 
 
 def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one_family_keeps_its_angle():
-    """The same sand and path at alpha = 0. The law is symmetric under x -> -x, and so is the path up to a
+    """The same sand and path at alpha = 0, with the step stabilisation 0.01 of the FE runs (without it the
+    path keeps its symmetry: the default rule's rate-independent path, ``metadata["shear_onset"]`` None). The
+    law is symmetric under x -> -x, and so is the path up to a
     point past the peak where the two planes of a mirror pair stop loading together: one unloads, and the
     point shears under the driver's zero shear stress, eps_xz growing from round-off (below 1e-9) to about
     3e-3 by 5 %, in a sense that changes with the number of steps. It grows with its sign alternating from step
@@ -218,6 +220,31 @@ def test_at_a_mirror_symmetric_bedding_the_element_shears_after_the_peak_and_one
         assert against[-1] < 60.0
         stiffness = 2.0 * res.tangent[peak:start, 0, 2, 0, 2] / 60000.0
         assert (stiffness.max() > 10.0) == stiff
+        branch = res.metadata["shear_onset"]  # |eps_xz| above 1e-6 of eps_a: within a few steps of the start
+        assert 0 <= branch["row"] - start <= 4 and branch["sense"] == np.sign(shear[-1])
+    # the shear comes with the step stabilisation: the rate-independent law keeps the symmetric path
+    plain = driver.plane_strain(make_material({"preset": "ottawa_c109", "set": changes}), p0_kPa=100.0, alpha_deg=0.0,
+                                axial_strain=0.05, steps=400)
+    assert plain.completed and np.abs(plain["eps_xz"]).max() < 1e-15 and plain.metadata["shear_onset"] is None
+
+
+def test_the_element_command_says_where_a_symmetric_path_branches(tmp_path, capsys):
+    """``femgran element plane-strain --stabilisation MU``: the FE runs' stabilised law at a point; where its
+    path on a mirror-symmetric bedding shears (the test above), the summary line says where (measured with the
+    default rule, 400 steps to 5 %: eps_a = 0.02612); a stabilisation out of range is refused before anything
+    runs, naming it."""
+    from femgran.cli import main
+
+    soft = ["--set", "E=60000", "--set", "zeta=1.05", "--set", "softening_slip=0.03", "--set", "residual_ratio=0.65",
+            "--set", "eta_c_ratio=0"]
+    common = ["element", "plane-strain", "--p0", "100", "--alpha", "0", "--no-plot", "--no-progress"]
+    assert main([*common, "--axial-strain", "0.05", "--steps", "400", *soft, "--stabilisation", "0.01",
+                 "--out", str(tmp_path / "mu")]) == 0
+    assert "the symmetric path branches at eps_a = 0.0261" in capsys.readouterr().out
+    assert main([*common, "--axial-strain", "0.05", "--steps", "400", *soft, "--out", str(tmp_path / "plain")]) == 0
+    assert "branches" not in capsys.readouterr().out  # the rate-independent law keeps the symmetric path
+    assert main([*common, "--steps", "4", "--stabilisation", "-1", "--out", str(tmp_path / "bad")]) == 2
+    assert "stabilisation = -1.0: allowed" in capsys.readouterr().err and not (tmp_path / "bad").exists()
 
 
 def test_the_element_sweep_and_its_command_report_the_onset(tmp_path, capsys):
