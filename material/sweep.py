@@ -403,8 +403,9 @@ def element(out, test: str = "triaxial", material=None, **driver_kwargs) -> dict
     "bazant-oh-33"}``; default: the test's preset). ``test = "path"`` replays ``path_file`` (CSV or TOML,
     ``substeps``). The other keywords go to the driver function (``p0_kPa``, ``alpha_deg``, ``steps``...).
     Returns the peak stress measure, the final volumetric measure, for the plane-strain test Rice's onset
-    (``bifurcation_eps_a``, ``_q13_kPa``, ``_band_deg``; NaN where it stays elliptic) and whether the test
-    reached its end.
+    (``bifurcation_eps_a``, ``_q13_kPa``, ``_band_deg``; NaN where it stays elliptic) and where its path on a
+    mirror-symmetric bedding shears (``shear_onset_eps_a``, NaN where it keeps its symmetry), and whether the
+    test reached its end.
     """
     from material import driver
 
@@ -444,5 +445,7 @@ def element(out, test: str = "triaxial", material=None, **driver_kwargs) -> dict
         onset = res.metadata["bifurcation"] or {}
         summary.update({f"bifurcation_{k}": float(onset.get(k, np.nan))
                         for k in ("eps_a", "q13_kPa", "band_deg", "rising_deg", "falling_deg")})
+        branch = res.metadata.get("shear_onset") or {}  # where a mirror-symmetric path shears (NaN: it does not)
+        summary["shear_onset_eps_a"] = float(branch.get("eps_a", np.nan))
     summary.update(completed=bool(res.completed), stop_reason=res.message or "")
     return summary

@@ -258,6 +258,7 @@ def test_the_element_sweep_and_its_command_report_the_onset(tmp_path, capsys):
     summary = element(tmp_path / "soft", test="plane-strain", material=soft, p0_kPa=100.0, alpha_deg=0.0,
                       axial_strain=0.05, steps=100)
     assert 0.032 < summary["bifurcation_eps_a"] < 0.035 and 60.0 < summary["bifurcation_band_deg"] < 62.5
+    assert np.isnan(summary["shear_onset_eps_a"])  # rate-independent: the path keeps its symmetry
     plain = element(tmp_path / "plain", test="plane-strain", p0_kPa=100.0, axial_strain=0.02, steps=20)
     assert np.isnan(plain["bifurcation_band_deg"]) and "bifurcation_eps_a" not in element(
         tmp_path / "tx", test="triaxial", p0_kPa=100.0, axial_strain=0.01, steps=5)
