@@ -898,8 +898,9 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
     ``metadata["bifurcation"]``, the onset (:func:`_bifurcation`; ``docs/regularisation.md``, section 4).
 
     Where the bedding is mirror-symmetric about the axes (alpha = 0 or 90 deg) and the law softens with the
-    step stabilisation, the path branches after the peak: the two planes of a mirror pair stop loading together, one unloads, and the
-    point shears, eps_xz growing from round-off to about 1e-2 by 8 % axial strain. The sense of that shear
+    step stabilisation, the path branches after the peak: the two planes of a mirror pair stop loading
+    together, one unloads, and the point shears, eps_xz growing from round-off to about 1e-2 by 8 % axial
+    strain. The sense of that shear
     is not set by the loading (it changes with the number of steps); the mirror image of the path is the
     path sheared the other way, with the rising and falling columns exchanged (``docs/regularisation.md``,
     section 4, "The element path shears after the peak"). ``metadata["shear_onset"]`` says where
@@ -927,10 +928,12 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
 
 
 #: The shear strain at which a mirror-symmetric path counts as sheared (:func:`_shear_onset`), as a fraction of
-#: the axial strain: ten orders of magnitude above the round-off the shear grows from (1e-17 to 1e-11 before
-#: it grows, measured), three to four below what it grows to (1e-3 to 1e-2). The shear grows by 1.6 to 2.2
-#: times a step and then jumps by three orders in one, so any fraction between 1e-9 and 1e-4 gives the same
-#: row within a few steps (``docs/regularisation.md``, section 4).
+#: the axial strain: nine to ten orders of magnitude above the round-off the shear grows from (1e-17),
+#: four to five below what it grows to (3e-3 to 2e-2 by 5-8 %). Measured on the shear-band study's sand
+#: (mu = 0.01, alpha = 0, to 5 %), fractions of 1e-9 / 1e-6 / 1e-4 give the rows 649 / 651 / 651 of 1000 with
+#: ``equator-78``, whose symmetric branch ends in a fold, and 200 / 209 / 214 of 400 and 700 / 717 / 727 of
+#: 1600 with the default rule, whose shear grows by 2.15 times a step (``docs/regularisation.md``,
+#: section 4): the row moves by 0.1-0.4 % of axial strain over five orders of the fraction.
 SHEAR_ONSET = 1e-6
 
 
