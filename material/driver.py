@@ -933,7 +933,7 @@ def plane_strain(model_or_params, p0_kPa: float = 100.0, alpha_deg: float = 0.0,
 #: (mu = 0.01, alpha = 0, to 5 %), fractions of 1e-9 / 1e-6 / 1e-4 give the rows 649 / 651 / 651 of 1000 with
 #: ``equator-78``, whose symmetric branch ends in a fold, and 200 / 209 / 214 of 400 and 700 / 717 / 727 of
 #: 1600 with the default rule, whose shear grows by 2.15 times a step (``docs/regularisation.md``,
-#: section 4): the row moves by 0.1-0.4 % of axial strain over five orders of the fraction.
+#: section 4): the row moves by 0.01-0.18 % of axial strain over five orders of the fraction.
 SHEAR_ONSET = 1e-6
 
 
