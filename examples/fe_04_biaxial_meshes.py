@@ -415,23 +415,27 @@ def _law_angles(row, bands: dict) -> np.ndarray:
     in each arm's sense, on the element sheared as the inside of the arm is and on the one sheared the other
     way (they differ only on a mirror-symmetric bedding); NaN for a window without a friction. Prints them;
     returns (2 shears, 2 windows)."""
-    from femgran.band import _law_path, _read_law, run_material
+    from femgran.band import law_band_angles, run_material
 
     material, alpha, p0 = run_material(row["folder"])
     names = ("forming", "final")
-    path = _law_path(material, alpha, p0, 0.08, 1600)
     inside = np.array([bands[n]["interior_shear"] for n in names])
+    friction = [bands[n]["friction_deg"] for n in names]
+    rising = [bool(bands[n]["rising"] > 0.5) for n in names]
+    # one element path: each window read as sheared as the arm's inside, then the other way
+    angles, indicator = law_band_angles(material, alpha, p0, friction * 2, rising * 2,
+                                        interior_shear=np.concatenate([inside, -inside]))
     out = np.full((2, 2), np.nan)
-    for k, (shear, how) in enumerate(((inside, "as the inside of the arm"), (-inside, "the other way"))):
-        angles, indicator = _read_law(path, [bands[n]["friction_deg"] for n in names],
-                                      [bool(bands[n]["rising"] > 0.5) for n in names], shear)
+    for k, how in enumerate(("as the inside of the arm", "the other way")):
+        part = slice(2 * k, 2 * k + 2)
         print(f"  alpha {alpha:g}: the law's band at the friction inside the arm (element sheared {how}), "
               + "; ".join(f"{n} {bands[n]['friction_deg']:.1f} deg -> {v:.2f} deg, indicator {x:+.3f} (the arm "
-                          f"{bands[n]['angle_deg']:.1f})" for n, v, x in zip(names, angles, indicator)), flush=True)
+                          f"{bands[n]['angle_deg']:.1f})" for n, v, x in zip(names, angles[part], indicator[part])),
+              flush=True)
         # not drawn where the acoustic tensor is strongly indefinite: there its least det points nowhere in
         # particular (measured on these paths: -0.03 to +0.005 where bands form, -0.87 to -1.0 in those states,
         # nothing between)
-        out[k] = np.where(indicator > -0.5, angles, np.nan)
+        out[k] = np.where(indicator[part] > -0.5, angles[part], np.nan)
     return out
 
 

@@ -673,8 +673,9 @@ def law_band_angles(material, alpha_deg: float, p0_kPa: float, friction_deg, ris
 
 def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
     """The element path of :func:`law_band_angles`: (its result, the mobilised friction [deg] per row, its peak
-    row, the sign of its shear after the peak where the bedding is mirror-symmetric, else 0: a path with no
-    mirror image to read)."""
+    row, the sense of its shear where the path on a mirror-symmetric bedding shears (the driver's
+    ``metadata["shear_onset"]``), else 0: a path with no mirror image to read, or one that keeps its
+    symmetry, whose two families are one)."""
     from material import driver
     from material.factory import LENGTH_KEYS, make_material
 
@@ -691,9 +692,8 @@ def _law_path(material, alpha_deg, p0_kPa, axial_strain, steps):
     peak = int(np.nanargmax(q))
     with np.errstate(invalid="ignore"):
         mobilised = np.degrees(np.arcsin(np.clip(q / (q + 2.0 * p0), -1.0, 1.0)))
-    mirror = alpha % 90.0 == 0.0  # the bedding along x or z: the law is symmetric under x -> -x
-    sense = float(np.sign(np.mean(res["eps_xz"][peak:]))) if mirror else 0.0
-    return res, mobilised, peak, sense
+    branch = res.metadata["shear_onset"]  # where a mirror-symmetric path shears, and in which sense
+    return res, mobilised, peak, 0.0 if branch is None else branch["sense"]
 
 
 def _read_law(path, friction_deg, rising, interior_shear=None):

@@ -192,7 +192,7 @@ def _run(args) -> int:
     if args.stabilisation:
         from material.factory import make_material
 
-        make_material({"preset": "ottawa_c109", "stabilisation": args.stabilisation})  # and the stabilisation
+        make_material(_material_spec(args))  # and the stabilisation
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     stem = args.test.replace("-", "_")
