@@ -405,6 +405,47 @@ class CPAModel:
         _k.uniqueness_floors(self._law, _k.to_mandel(sig), eps6, kap, self._softening_scale(state, n), out)
         return out
 
+    #: A failed point "stops at its peak" when, at 0.99 of the fraction its branch reached, a loading plane
+    #: has kappa / kappa* at or above this. Measured at the stops of the plane-strain element path with
+    #: ``equator-78`` (alpha = 0): 0.9998 at 0.99 of the failed increment; the branch reached 0.984 of it.
+    PEAK_STOP_RATIO = 0.99
+
+    def explain_failure(self, d_strain, stress, state: State, **update_inputs) -> list:
+        """Why the update of each point fails, as far as the law can tell: a sentence or None per point, (N,).
+
+        The one cause it names: a softening point whose branch ends where its first planes reach their peak
+        kappa* (:attr:`PEAK_STOP_RATIO`). There the point snaps back: the planes still hardening beside the
+        softening ones, with the elasticity, are more compliant than the softening planes, so going on would
+        ask the strain to go back, and no strain-driven solution continues (``docs/cpa_law.md``, section 5.2,
+        "The point snaps back at its peak"). ``update_inputs``: what :meth:`update` was given besides
+        the increment (``step_fraction``, ``d_nonlocal``, ...). The element drivers add the sentence to the
+        message of a path that stops."""
+        de, sig = check_batch(d_strain, stress)
+        out = [None] * de.shape[0]
+        if self.params.softening_slip <= 0.0:
+            return out
+        _, new, _ = self.update(de, sig, state, tangent=False, **update_inputs)
+        failed = np.flatnonzero(np.asarray(new["status"]) == STATUS_FAILED)
+        if failed.size == 0:
+            return out
+        reached = np.asarray(new["reached"], dtype=float)[failed]
+        sub = {k: np.asarray(v)[failed] for k, v in state.items()}
+        inputs = {k: (np.asarray(v)[failed] if np.ndim(v) else v) for k, v in update_inputs.items()}
+        short = 0.99 * reached[:, None, None] * de[failed]
+        _, before, _ = self.update(short, sig[failed], sub, tangent=False, **inputs)
+        kstar = self.params.kappa_instability
+        ratio = np.where(before["loading"], before["kappa"] / kstar, 0.0).max(axis=1)
+        was_past = (np.asarray(sub["kappa"]) >= kstar).any(axis=1)
+        at_peak = (before["status"] != STATUS_FAILED) & (ratio >= self.PEAK_STOP_RATIO) & (ratio < 1.0) & ~was_past
+        for i in np.flatnonzero(at_peak):
+            out[int(failed[i])] = (
+                f"the point snaps back at its peak: its branch ends at {reached[i]:.3g} of the increment, where its "
+                f"first planes reach kappa* (kappa / kappa* = {ratio[i]:.6f}), and no strain-driven solution goes on "
+                f"(the planes still hardening are more compliant than the softening ones); a gentler softening "
+                f"(softening_slip = {self.params.softening_slip:g} m now) or the step stabilisation carries it "
+                "(docs/cpa_law.md, section 5.2)")
+        return out
+
     def loading_tangent(self, stress, state: State, *, strengthening: str = "none", modulus: float = 0.0,
                         mandel: bool = False) -> np.ndarray:
         """The rate-independent loading tangent of each committed state (stress, state): (N, 3, 3, 3, 3), or
@@ -750,7 +791,10 @@ class CPAModel:
         ``equator-78`` (400 steps to 5 %) alpha = 60 deg goes on to 5 % where it stops at its peak without,
         while alpha = 0 and 30 deg stop at their peak either way (76 of the 78 planes load there; the branch
         of the driver's small increments folds at 0.2-0.9 of them and the continuation from the limit state
-        fails in turn). Not enough to switch it on."""
+        fails in turn). Not enough to switch it on. The stops at alpha = 0 and 30 deg are no limit point that a
+        continuation could pass: the point snaps back where its first planes reach kappa*, and no strain-driven
+        solution continues the branch (``docs/cpa_law.md``, section 5.2, "The point snaps back at its peak";
+        with softening_slip 0.1 m the same path softens to 6 %)."""
         return not self.rate_dependent and self._nonlocal_length is None and self.params.softening_slip == 0.0
 
     def _post_peak_strain(self, kappa) -> np.ndarray:

@@ -81,7 +81,10 @@ class CPAParameters:
         eta = eta_f (r + (1 - r) / (1 + d / softening_slip)),
         with d the slip past kappa* measured across the shear band (= (kappa - kappa*) h / t in a finite
         element of size h: the regularisation by the band thickness t, :mod:`material.cpa`). Requires
-        zeta > 1.
+        zeta > 1. Without the step stabilisation a steep softening makes the point itself snap back at its
+        peak, where no strain-driven solution goes on: on the plane-strain element path at p0 = 100 kPa that
+        takes softening_slip below 0.002-0.046 m at E = 60 MPa and 0.01-0.08 m at 6 MPa, by rule and
+        bedding (``docs/cpa_law.md``, section 5.2; ``CPAModel.explain_failure`` names such a point).
     residual_ratio : float
         r = eta_residual / eta_f of the softening law, in (0, 1] [-]; default 0.65, the compaction-dilation
         transition eta_c / eta_f of Table 3 (the critical state: no more dilation in the band).

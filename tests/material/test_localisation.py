@@ -339,3 +339,64 @@ def test_the_loading_tangent_names_a_bad_strengthening(kwargs, message):
     state = model.initial_state(1, stress=-100.0 * np.eye(3)[None])
     with pytest.raises(ValueError, match=message):
         model.loading_tangent(-100.0 * np.eye(3)[None], state, **kwargs)
+
+
+def _softening_sand(softening_slip: float, rule: str, stabilisation: float = 0.0, alpha_deg: float = 0.0):
+    from material.factory import make_material
+
+    changes = {"E": 60000.0, "zeta": 1.05, "softening_slip": softening_slip, "residual_ratio": 0.65,
+               "eta_c_ratio": 0.0}
+    return make_material({"preset": "ottawa_c109", "stabilisation": stabilisation, "set": changes, "rule": rule},
+                         alpha_deg=alpha_deg)
+
+
+@pytest.mark.filterwarnings("ignore:element path stopped early")
+def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_softening_is_steep():
+    """The softening sand of the shear-band study without the step stabilisation, on the plane-strain element
+    path (600 steps to 6 %; docs/cpa_law.md, section 5.2, "The point snaps back at its peak"). Whether it goes
+    past its peak is a property of the law, not of the solver: the steeper a plane softens (the smaller
+    softening_slip) and the more compliant the planes that still harden beside it (planes every 5 deg with
+    ``equator-78``), the sooner the point snaps back. Measured: ``equator-78`` at alpha = 0 stops at its peak
+    with softening_slip 0.003-0.03 m and goes on with 0.1-0.3 m; the default rule at alpha = 30 deg stops with
+    0.003-0.01 m and goes on with 0.03 m and more; the step stabilisation 0.01 carries either.
+    At the stop the branch of the point's update ends where the first planes reach their peak kappa*
+    (kappa / kappa* = 0.9998 at 0.99 of the failed increment), and the plain-numpy reference ends there
+    too: no strain-driven solution continues it."""
+    from material import driver
+    from material.cpa_reference import ReferenceFailure, update_point
+
+    def path(slip, rule, alpha, mu=0.0):
+        model = _softening_sand(slip, rule, mu, alpha)
+        return model, driver.plane_strain(model, p0_kPa=100.0, alpha_deg=alpha, axial_strain=0.06, steps=600)
+
+    for slip, rule, alpha, goes_on in ((0.03, "equator-78", 0.0, False), (0.1, "equator-78", 0.0, True),
+                                       (0.01, "bazant-oh-33", 30.0, False), (0.03, "bazant-oh-33", 30.0, True)):
+        model, res = path(slip, rule, alpha)
+        q = res["q13_kPa"]
+        assert res.completed is goes_on, (slip, rule, alpha)
+        if goes_on:
+            assert q[-1] < 0.8 * q.max()  # it softened
+        else:
+            assert int(np.argmax(q)) == len(q) - 1  # stopped at its peak
+    # the stabilisation's viscosity carries the steep case
+    _, res = path(0.03, "equator-78", 0.0, mu=0.01)
+    assert res.completed
+    # where the first case stops: the branch ends at the planes' peak, in the kernel and in the reference
+    model, res = path(0.03, "equator-78", 0.0)
+    state, sig, de = res.final_state, res.stress[-1][None], (res.strain[-1] - res.strain[-2])[None]
+    kstar = model.params.kappa_instability
+    _, before, _ = model.update(0.99 * de, sig, state, tangent=False)
+    assert before["status"][0] == 0 and 0.999 < before["kappa"][0].max() / kstar < 1.0
+    _, after, _ = model.update(de, sig, state, tangent=False)
+    assert after["status"][0] == 2 and 0.98 < after["reached"][0] < 0.99
+    with pytest.raises(ReferenceFailure, match="no solution beyond the fraction 0.98"):
+        update_point(model, de[0], sig[0], state)
+    # the law says so, point by point, and the driver's stop message carries it
+    two = {k: np.concatenate([v, v]) for k, v in state.items()}
+    why = model.explain_failure(np.concatenate([0.5 * de, de]), np.concatenate([sig, sig]), two)
+    assert why[0] is None and "snaps back at its peak" in why[1] and "softening_slip = 0.03 m" in why[1]
+    assert "kappa / kappa* = 0.99" in why[1]
+    assert "snaps back at its peak" in res.message
+    # a law without softening has nothing to say
+    plain = _softening_sand(0.0, "equator-78", 0.0, 0.0)
+    assert plain.explain_failure(de, sig, plain.initial_state(1, stress=sig)) == [None]
