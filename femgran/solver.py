@@ -493,15 +493,30 @@ class NewtonSolver:
         """Material update for the trial increment du; residual r (ndofs,), failed mask."""
         de = self.disc.strain(du)
         self._trial_strain = de  # the full Newton step's row of the log takes its direction's strain from it
-        stress, tangent, failed = self.points.evaluate(de, **self._point_inputs(du))
+        inputs = self._point_inputs(du)
+        stress, tangent, failed = self.points.evaluate(de, **inputs)
         if failed.any():
             where = getattr(self.points.material, "replay_dir", None)
             hint = f" (their inputs: {where})" if where is not None else ""
-            raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}", self.points.suggested_ratio())
+            raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}{self._why_failed(de, failed, inputs)}",
+                               self.points.suggested_ratio())
         r = self.disc.internal_force(stress, tangent, self.u + du) - self.external(t)
         if not np.all(np.isfinite(r)):
             raise _StepFailure("residual not finite")
         return r, tangent
+
+    def _why_failed(self, de, failed, inputs) -> str:
+        """The material's own reading of its failed points (``explain_failure``, e.g. the CPA law's point that
+        snaps back at the peak of its planes), as a clause of the stop message: how many points it explains,
+        and the first one's sentence ("" if the law has none)."""
+        explain = getattr(self.points.material, "explain_failure", None)
+        if explain is None:
+            return ""
+        idx = np.flatnonzero(failed)
+        why = [w for w in explain(de, self.points.stress, self.points.state, points=idx, **inputs) if w]
+        if not why:
+            return ""
+        return f"; {len(why)} of them: {why[0]}"
 
     def _point_inputs(self, du) -> dict:
         """The material's inputs besides the strain increment: the coupled field's increment

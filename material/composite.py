@@ -173,6 +173,30 @@ class Composite:
                 new[prefix + key] = full
         return new_stress, self._merge(new), tangent
 
+    def explain_failure(self, d_strain, stress, state, *, points=None, d_nonlocal=None, step_fraction: float = 1.0,
+                        d_nonlocal_plastic_strain=None) -> list:
+        """Each law's :meth:`material.CPAModel.explain_failure` on its points among ``points`` (default all):
+        one sentence or None per point asked, in their order; a law without it says nothing (None)."""
+        de, s = check_batch(d_strain, stress)
+        n = self._n(de.shape[0])
+        asked = np.arange(n) if points is None else np.asarray(points, dtype=np.int64)
+        out = [None] * asked.size
+        for k, (law, idx) in enumerate(zip(self.laws, self.index)):
+            explain = getattr(law, "explain_failure", None)
+            mine = np.flatnonzero(np.isin(asked, idx))
+            if explain is None or mine.size == 0:
+                continue
+            prefix = f"{k}:"
+            sub = {key[len(prefix):]: arr[asked[mine]] for key, arr in state.items() if key.startswith(prefix)}
+            extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[asked[mine]]}
+            if d_nonlocal_plastic_strain is not None:
+                extra["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[asked[mine]]
+            if getattr(law, "rate_dependent", False):
+                extra["step_fraction"] = step_fraction
+            for j, why in zip(mine, explain(de[asked[mine]], s[asked[mine]], sub, **extra)):
+                out[int(j)] = why
+        return out
+
     def loading_tangent(self, stress, state, **options):
         """:meth:`material.CPAModel.loading_tangent` of each law on its points (N, 3, 3, 3, 3); a law without
         it (not a CPA law) raises ``TypeError`` naming it."""

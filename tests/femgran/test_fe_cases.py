@@ -662,3 +662,21 @@ def test_peak_strains_keep_the_rows_near_the_peak_without_changing_a_persisted_v
     restored.add(149.0, np.full((2, 3, 3), 7.0))
     assert restored.data["peak_rows"].tolist() == [40, 41]
     assert np.array_equal(_PeakStrains.strain_at(restored.data, 41), np.full((2, 3, 3), 7.0))
+
+
+def test_a_softening_specimen_whose_points_snap_back_at_their_peak_stops_and_says_so(tmp_path, capsys):
+    """The softening sand with ``equator-78`` (associated, E = 60 MPa, softening_slip 0.03 m, which the crack
+    band scales to 0.0072 m on these 25 mm elements), a homogeneous smooth-platen biaxial specimen without
+    the step stabilisation: every point reaches the peak of its planes together and snaps back there (the
+    element path does the same, ``tests/material/test_localisation.py``); the stop message names it. (The
+    step stabilisation 0.01 carries the same specimen past the peak, in 98 s: docs/cpa_law.md, section 5.2.)"""
+    from femgran.cli import main
+
+    args = ["biaxial", "--resolution", "2", "--platens", "smooth", "--imperfection", "0", "--rule", "equator-78",
+            "--set", "E=60000", "--set", "zeta=1.05", "--set", "softening_slip=0.03", "--set", "eta_c_ratio=0",
+            "--axial-strain", "0.02", "--steps", "40", "--no-progress"]
+    assert main(args + ["--out", str(tmp_path)]) == 1
+    said = capsys.readouterr()
+    said = said.out + said.err
+    assert "32 material point(s) failed" in said and "32 of them: the point snaps back at the peak of its planes" in said
+    assert "softening_slip = 0.03 m now, scaled by the crack band to 0.0072 m at this point" in said

@@ -394,9 +394,18 @@ def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_so
     # the law says so, point by point, and the driver's stop message carries it
     two = {k: np.concatenate([v, v]) for k, v in state.items()}
     why = model.explain_failure(np.concatenate([0.5 * de, de]), np.concatenate([sig, sig]), two)
-    assert why[0] is None and "snaps back at its peak" in why[1] and "softening_slip = 0.03 m" in why[1]
+    assert why[0] is None and "snaps back at the peak of its planes" in why[1] and "softening_slip = 0.03 m" in why[1]
     assert "kappa / kappa* = 0.99" in why[1]
-    assert "snaps back at its peak" in res.message
+    assert "snaps back at the peak of its planes" in res.message
+    assert model.explain_failure(np.concatenate([0.5 * de, de]), np.concatenate([sig, sig]), two, points=[1]) == why[1:]
+    # in a Composite (the FE cases' weak zone), each law on its points
+    from material.composite import Composite
+
+    both = Composite([_softening_sand(0.1, "equator-78"), model], np.array([0, 1]))
+    state2 = both.initial_state(2, stress=np.concatenate([sig, sig]))
+    for k, v in state.items():
+        state2["1:" + k] = np.concatenate([v, v])
+    assert both.explain_failure(np.concatenate([de, de]), np.concatenate([sig, sig]), state2, points=[1]) == why[1:]
     # a law without softening has nothing to say
     plain = _softening_sand(0.0, "equator-78", 0.0, 0.0)
     assert plain.explain_failure(de, sig, plain.initial_state(1, stress=sig)) == [None]
