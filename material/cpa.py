@@ -436,7 +436,8 @@ class CPAModel:
         out = [None] * de.shape[0]
         if self.params.softening_slip <= 0.0:
             return out
-        _, new, _ = self.update(de, sig, state, tangent=False, **update_inputs)
+        quiet = self.with_replay_dir(None)  # a copy: no second replay file, and this law's last_failure kept
+        _, new, _ = quiet.update(de, sig, state, tangent=False, **update_inputs)
         failed = np.flatnonzero(np.asarray(new["status"]) == STATUS_FAILED)
         if failed.size == 0:
             return out
@@ -444,7 +445,7 @@ class CPAModel:
         sub = {k: np.asarray(v)[failed] for k, v in state.items()}
         inputs = {k: (np.asarray(v)[failed] if np.ndim(v) else v) for k, v in update_inputs.items()}
         short = 0.99 * reached[:, None, None] * de[failed]
-        _, before, _ = self.update(short, sig[failed], sub, tangent=False, **inputs)
+        _, before, _ = quiet.update(short, sig[failed], sub, tangent=False, **inputs)
         off = np.where(before["loading"], np.abs(before["kappa"] / self.params.kappa_instability - 1.0), np.inf)
         nearest = off.argmin(axis=1)
         ratio = 1.0 + (before["kappa"] / self.params.kappa_instability - 1.0)[np.arange(failed.size), nearest]

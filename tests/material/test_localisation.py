@@ -351,7 +351,7 @@ def _softening_sand(softening_slip: float, rule: str, stabilisation: float = 0.0
 
 
 @pytest.mark.filterwarnings("ignore:element path stopped early")
-def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_softening_is_steep():
+def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_softening_is_steep(tmp_path):
     """The softening sand of the shear-band study without the step stabilisation, on the plane-strain element
     path (600 steps to 6 %; docs/cpa_law.md, section 5.2, "The point snaps back at its peak"). Whether it goes
     past its peak is a property of the law, not of the solver: the steeper a plane softens (the smaller
@@ -398,6 +398,15 @@ def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_so
     assert "kappa / kappa* = 0.99" in why[1]
     assert "snaps back at the peak of its planes" in res.message
     assert model.explain_failure(np.concatenate([0.5 * de, de]), np.concatenate([sig, sig]), two, points=[1]) == why[1:]
+    # it neither writes a second replay file nor changes what the law's last failure was
+    model.update(de, sig, state, tangent=False)
+    kept = model.last_failure
+    recording = model.with_replay_dir(tmp_path)
+    recording.update(de, sig, state, tangent=False)
+    assert len(list(tmp_path.iterdir())) == 1
+    assert recording.explain_failure(de, sig, state)[0] == why[1] and len(list(tmp_path.iterdir())) == 1
+    model.explain_failure(np.concatenate([0.5 * de, de]), np.concatenate([sig, sig]), two)
+    assert model.last_failure is kept
     # in a Composite (the FE cases' weak zone), each law on its points
     from material.composite import Composite
 
