@@ -56,6 +56,7 @@ Decisions not fixed by the thesis (``docs/cpa_law.md`` gives the reasons and the
 from __future__ import annotations
 
 import copy
+import itertools
 import os
 import time
 from dataclasses import dataclass
@@ -847,7 +848,10 @@ class CPAModel:
         self.last_failure = record
         if self.replay_dir is not None:
             self.replay_dir.mkdir(parents=True, exist_ok=True)
-            path = self.replay_dir / f"cpa-failure-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}-{idx[0]}.npz"
+            # the process's running number keeps two failures of one second at the same first point apart (the
+            # name had only the second: a run failing twice a second kept the last)
+            path = self.replay_dir / (f"cpa-failure-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}-"
+                                      f"{next(_FAILURE_NUMBER):05d}-{idx[0]}.npz")
             np.savez(path, **record)
             self.last_failure["path"] = str(path)
 
@@ -983,6 +987,9 @@ def replay(path, **model_options):
     stress, new_state, tangent = model.update(data["d_strain"], data["stress"], state, **extra)
     return model, stress, new_state, tangent
 
+
+#: the running number of the replay files a process writes (their names, :meth:`CPAModel._record_failure`)
+_FAILURE_NUMBER = itertools.count()
 
 # re-exported status codes for convenience
 STATUS = {"ok": STATUS_OK, "failed": STATUS_FAILED}

@@ -845,6 +845,10 @@ def test_failed_point_returns_start_stress_and_a_replay_file(tmp_path):
     ref, _, _ = CPAModel("ottawa_c109").update(DE[None], sig, st)
     assert state_r["status"][0] == STATUS_OK
     np.testing.assert_allclose(stress_r, ref, rtol=1e-12)
+    # the same failure again within the same second keeps a file of its own
+    model.update(DE[None], sig, st)
+    model.update(DE[None], sig, st)
+    assert len(list(tmp_path.glob("cpa-failure-*.npz"))) == 3
 
 
 def test_initial_anisotropic_stress_releases_no_slip_burst():
