@@ -453,7 +453,7 @@ class CPAModel:
         at_peak = (before["status"] != STATUS_FAILED) & (off.min(axis=1) <= self.PEAK_STOP_TOLERANCE)
         scale = self._softening_scale(sub, failed.size)
         for i in np.flatnonzero(at_peak):
-            here = "" if scale[i] == self.params.softening_slip else \
+            here = "" if np.isclose(scale[i], self.params.softening_slip, rtol=1e-9, atol=0.0) else \
                 f", scaled by the crack band to {scale[i]:.3g} m at this point"
             out[int(failed[i])] = (
                 f"the point snaps back at the peak of its planes: its branch ends at {reached[i]:.3g} of the "
