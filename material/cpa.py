@@ -411,7 +411,7 @@ class CPAModel:
     #: ``equator-78`` (alpha = 0) kappa / kappa* = 0.9998 there, the branch having reached 0.984 of the
     #: increment; at a point of the crack-band biaxial run without the stabilisation (12 elements) the
     #: plane passed kappa* on the branch (1.0023 at 0.83 of the increment) and came back to it, 1.0003 at
-    #: 0.99 of the 0.92 reached; the other failed points of that run were 2 % or 27 % away from it.
+    #: 0.99 of the 0.92 reached; the run's two other failed points had planes 25 % and 27 % past it.
     PEAK_STOP_TOLERANCE = 0.01
 
     def explain_failure(self, d_strain, stress, state: State, *, points=None, **update_inputs) -> list:
