@@ -513,7 +513,10 @@ class NewtonSolver:
         if explain is None:
             return ""
         idx = np.flatnonzero(failed)
-        why = [w for w in explain(de, self.points.stress, self.points.state, points=idx, **inputs) if w]
+        extra = dict(inputs)
+        if "reached" in self.points.trial_state:  # the failed update's own fraction: it need not run again
+            extra["reached"] = np.asarray(self.points.trial_state["reached"], dtype=float)[idx]
+        why = [w for w in explain(de, self.points.stress, self.points.state, points=idx, **extra) if w]
         if not why:
             return ""
         return f"; {len(why)} of them: {why[0]}"

@@ -19,7 +19,7 @@ from material.base import STATUS_OK, BackStressTangent, CoupledTangent, as_stres
 
 __all__ = ["Composite"]
 
-_SHARED = ("strain", "status", "step_ratio")
+_SHARED = ("strain", "status", "step_ratio", "reached")
 _MERGED = ("plastic_strain", "mobilised_ratio", "eq_plastic_strain", "kappa", "loading", "near_apex", "iterations",
            "continuation", "nonlocal")
 
@@ -107,7 +107,8 @@ class Composite:
         n = self._n(n_points)
         sig = as_stress_batch(stress, n)
         h = None if element_size is None else np.broadcast_to(np.asarray(element_size, float), (n,))
-        state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n)}
+        state = {"strain": np.zeros((n, 3, 3)), "status": np.zeros(n, np.int8), "step_ratio": np.ones(n),
+                 "reached": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
             sub = law.initial_state(idx.size, stress=sig[idx], element_size=None if h is None else h[idx])
             for key, arr in sub.items():
@@ -152,15 +153,11 @@ class Composite:
         n = self._n(de.shape[0])
         new_stress = np.empty_like(s)
         tangent = None
-        new = {"strain": state["strain"] + de, "status": np.full(n, STATUS_OK, np.int8), "step_ratio": np.ones(n)}
+        new = {"strain": state["strain"] + de, "status": np.full(n, STATUS_OK, np.int8), "step_ratio": np.ones(n),
+               "reached": np.ones(n)}
         for k, (law, idx) in enumerate(zip(self.laws, self.index)):
             prefix = f"{k}:"
-            sub = {key[len(prefix):]: arr[idx] for key, arr in state.items() if key.startswith(prefix)}
-            extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[idx]}
-            if d_nonlocal_plastic_strain is not None:
-                extra["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[idx]
-            if getattr(law, "rate_dependent", False):
-                extra["step_fraction"] = step_fraction
+            sub, extra = self._law_inputs(k, idx, state, d_nonlocal, step_fraction, d_nonlocal_plastic_strain)
             s_k, st_k, D_k = law.update(de[idx], s[idx], sub, **extra)
             new_stress[idx] = s_k
             if tangent is None:
@@ -173,10 +170,24 @@ class Composite:
                 new[prefix + key] = full
         return new_stress, self._merge(new), tangent
 
-    def explain_failure(self, d_strain, stress, state, *, points=None, d_nonlocal=None, step_fraction: float = 1.0,
-                        d_nonlocal_plastic_strain=None) -> list:
+    def _law_inputs(self, k: int, rows, state, d_nonlocal, step_fraction, d_nonlocal_plastic_strain):
+        """Law k's state at the point ``rows`` and its inputs besides the strain increment (:meth:`update`):
+        ``d_nonlocal`` and ``d_nonlocal_plastic_strain`` at those rows, ``step_fraction`` if it is rate
+        dependent."""
+        law, prefix = self.laws[k], f"{k}:"
+        sub = {key[len(prefix):]: arr[rows] for key, arr in state.items() if key.startswith(prefix)}
+        extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[rows]}
+        if d_nonlocal_plastic_strain is not None:
+            extra["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[rows]
+        if getattr(law, "rate_dependent", False):
+            extra["step_fraction"] = step_fraction
+        return sub, extra
+
+    def explain_failure(self, d_strain, stress, state, *, points=None, reached=None, d_nonlocal=None,
+                        step_fraction: float = 1.0, d_nonlocal_plastic_strain=None) -> list:
         """Each law's :meth:`material.CPAModel.explain_failure` on its points among ``points`` (default all):
-        one sentence or None per point asked, in their order; a law without it says nothing (None)."""
+        one sentence or None per point asked, in their order; a law without it says nothing (None).
+        ``reached``: per point asked, as there."""
         de, s = check_batch(d_strain, stress)
         n = self._n(de.shape[0])
         asked = np.arange(n) if points is None else np.asarray(points, dtype=np.int64)
@@ -186,14 +197,11 @@ class Composite:
             mine = np.flatnonzero(np.isin(asked, idx))
             if explain is None or mine.size == 0:
                 continue
-            prefix = f"{k}:"
-            sub = {key[len(prefix):]: arr[asked[mine]] for key, arr in state.items() if key.startswith(prefix)}
-            extra = {} if d_nonlocal is None else {"d_nonlocal": np.asarray(d_nonlocal, dtype=float)[asked[mine]]}
-            if d_nonlocal_plastic_strain is not None:
-                extra["d_nonlocal_plastic_strain"] = np.asarray(d_nonlocal_plastic_strain, dtype=float)[asked[mine]]
-            if getattr(law, "rate_dependent", False):
-                extra["step_fraction"] = step_fraction
-            for j, why in zip(mine, explain(de[asked[mine]], s[asked[mine]], sub, **extra)):
+            rows = asked[mine]
+            sub, extra = self._law_inputs(k, rows, state, d_nonlocal, step_fraction, d_nonlocal_plastic_strain)
+            if reached is not None:
+                extra["reached"] = np.asarray(reached, dtype=float)[mine]
+            for j, why in zip(mine, explain(de[rows], s[rows], sub, **extra)):
                 out[int(j)] = why
         return out
 

@@ -414,7 +414,7 @@ class CPAModel:
     #: 0.99 of the 0.92 reached; the run's two other failed points had planes 25 % and 27 % past it.
     PEAK_STOP_TOLERANCE = 0.01
 
-    def explain_failure(self, d_strain, stress, state: State, *, points=None, **update_inputs) -> list:
+    def explain_failure(self, d_strain, stress, state: State, *, points=None, reached=None, **update_inputs) -> list:
         """Why the update of each point fails, as far as the law can tell: a sentence or None per point, (N,).
 
         The one cause it names: a softening point whose branch ends where a loading plane is at its peak
@@ -424,7 +424,9 @@ class CPAModel:
         strain-driven solution continues (``docs/cpa_law.md``, section 5.2, "The point snaps back at its
         peak"). ``update_inputs``: what :meth:`update` was given besides the increment (``step_fraction``,
         ``d_nonlocal``, ...), per point where they are arrays. ``points``: the indices of the points to explain
-        (default all); the list then has one entry per index. The element drivers and the FE solver add the
+        (default all); the list then has one entry per index. ``reached``: the fraction of the increment each
+        point's update reached (its state's ``reached``, per point explained), which the caller of a failed
+        update has: given, the failed update is not run again. The element drivers and the FE solver add the
         sentence to the message of a run that stops."""
         de, sig = check_batch(d_strain, stress)
         if points is not None:
@@ -438,11 +440,16 @@ class CPAModel:
         if self.params.softening_slip <= 0.0:
             return out
         quiet = self.with_replay_dir(None)  # a copy: no second replay file, and this law's last_failure kept
-        _, new, _ = quiet.update(de, sig, state, tangent=False, **update_inputs)
-        failed = np.flatnonzero(np.asarray(new["status"]) == STATUS_FAILED)
+        if reached is None:
+            _, new, _ = quiet.update(de, sig, state, tangent=False, **update_inputs)
+            reached = np.where(np.asarray(new["status"]) == STATUS_FAILED, np.asarray(new["reached"], dtype=float), 1.0)
+        reached = np.asarray(reached, dtype=float)
+        if reached.shape != (de.shape[0],):
+            raise ValueError(f"reached: expected shape ({de.shape[0]},), one fraction per point, got {reached.shape}")
+        failed = np.flatnonzero(reached < 1.0)
         if failed.size == 0:
             return out
-        reached = np.asarray(new["reached"], dtype=float)[failed]
+        reached = reached[failed]
         sub = {k: np.asarray(v)[failed] for k, v in state.items()}
         inputs = {k: (np.asarray(v)[failed] if np.ndim(v) else v) for k, v in update_inputs.items()}
         short = 0.99 * reached[:, None, None] * de[failed]

@@ -418,14 +418,18 @@ def _update(model, point: _Point, d_eps: np.ndarray, inputs=None):
     return to_mandel(stress[0]), state, tangent, failed
 
 
-def _failure_reason(model, point: _Point, d_eps: np.ndarray, inputs=None) -> str:
-    """The stop message of a step whose increment the law cannot integrate, with the law's own reading of
-    why where it has one (``explain_failure``: the CPA law names a point that snaps back at its peak)."""
+def _failure_reason(model, point: _Point, d_eps: np.ndarray, failed_state, inputs=None) -> str:
+    """The stop message of a step whose increment the law cannot integrate (``failed_state``: the state the
+    failed update returned), with the law's own reading of why where it has one (``explain_failure``: the
+    CPA law names a point that snaps back at its peak)."""
     reason = "the material returned status FAILED (no converged stress for this increment)"
     explain = getattr(model, "explain_failure", None)
     if explain is None:
         return reason
-    why = explain(from_mandel(d_eps)[None], from_mandel(point.stress)[None], point.state, **(inputs or {}))[0]
+    extra = dict(inputs or {})
+    if "reached" in failed_state:
+        extra["reached"] = np.asarray(failed_state["reached"], dtype=float)
+    why = explain(from_mandel(d_eps)[None], from_mandel(point.stress)[None], point.state, **extra)[0]
     return reason if why is None else f"{reason}: {why}"
 
 
@@ -472,7 +476,7 @@ def _solve_step(model, point: _Point, seg: Segment, c_end: np.ndarray, tol: floa
                 break
             dx = 0.5 * dx
         else:
-            return None, None, _failure_reason(model, point, trial, inputs)
+            return None, None, _failure_reason(model, point, trial, new[1], inputs)
         d_eps = trial
         if undrained:
             d_u += dx[6]
