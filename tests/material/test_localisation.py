@@ -415,6 +415,10 @@ def test_the_rate_independent_softening_point_snaps_back_at_its_peak_when_its_so
     for k, v in state.items():
         state2["1:" + k] = np.concatenate([v, v])
     assert both.explain_failure(np.concatenate([de, de]), np.concatenate([sig, sig]), state2, points=[1]) == why[1:]
+    # given the failed update's own fraction, the same sentence without running it again; a wrong shape is named
+    assert model.explain_failure(de, sig, state, reached=after["reached"]) == why[1:]
+    with pytest.raises(ValueError, match=r"reached: expected shape \(1,\)"):
+        model.explain_failure(de, sig, state, reached=np.ones(2))
     # a law without softening has nothing to say
     plain = _softening_sand(0.0, "equator-78", 0.0, 0.0)
     assert plain.explain_failure(de, sig, plain.initial_state(1, stress=sig)) == [None]
