@@ -413,9 +413,19 @@ class LinearSolver:
 
 
 class _StepFailure(Exception):
-    def __init__(self, reason: str, ratio: float = 0.5):
+    """A step that cannot be completed: ``brief`` says why, ``ratio`` the cut-back it suggests. ``detail``, a
+    function of no argument returning a clause, is what more the material can say; it is asked only when the
+    reason is read (a run's stop message), not at each cut-back or line-search trial."""
+
+    def __init__(self, reason: str, ratio: float = 0.5, detail=None):
         super().__init__(reason)
-        self.reason, self.ratio = reason, ratio
+        self.brief, self.ratio, self._detail = reason, ratio, detail
+
+    @property
+    def reason(self) -> str:
+        if self._detail is not None:
+            self.brief, self._detail = self.brief + self._detail(), None
+        return self.brief
 
 
 class NewtonSolver:
@@ -498,28 +508,34 @@ class NewtonSolver:
         if failed.any():
             where = getattr(self.points.material, "replay_dir", None)
             hint = f" (their inputs: {where})" if where is not None else ""
-            raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}{self._why_failed(de, failed, inputs)}",
-                               self.points.suggested_ratio())
+            raise _StepFailure(f"{int(failed.sum())} material point(s) failed{hint}", self.points.suggested_ratio(),
+                               self._why_failed(de, failed, inputs))
         r = self.disc.internal_force(stress, tangent, self.u + du) - self.external(t)
         if not np.all(np.isfinite(r)):
             raise _StepFailure("residual not finite")
         return r, tangent
 
-    def _why_failed(self, de, failed, inputs) -> str:
+    def _why_failed(self, de, failed, inputs):
         """The material's own reading of its failed points (``explain_failure``, e.g. the CPA law's point that
-        snaps back at the peak of its planes), as a clause of the stop message: how many points it explains,
-        and the first one's sentence ("" if the law has none)."""
+        snaps back at the peak of its planes) as a function that returns a clause of the stop message: how
+        many points it explains, and the first one's sentence ("" if the law has none). None for a material
+        without it. The function reads the committed state, which a cut-back keeps; it keeps the failed
+        update's fraction reached itself (the trial state, which the cut-back drops), so that update is not
+        run again."""
         explain = getattr(self.points.material, "explain_failure", None)
         if explain is None:
-            return ""
+            return None
         idx = np.flatnonzero(failed)
         extra = dict(inputs)
-        if "reached" in self.points.trial_state:  # the failed update's own fraction: it need not run again
+        if "reached" in self.points.trial_state:
             extra["reached"] = np.asarray(self.points.trial_state["reached"], dtype=float)[idx]
-        why = [w for w in explain(de, self.points.stress, self.points.state, points=idx, **extra) if w]
-        if not why:
-            return ""
-        return f"; {len(why)} of them: {why[0]}"
+        stress, state = self.points.stress, self.points.state
+
+        def clause() -> str:
+            why = [w for w in explain(de, stress, state, points=idx, **extra) if w]
+            return f"; {len(why)} of them: {why[0]}" if why else ""
+
+        return clause
 
     def _point_inputs(self, du) -> dict:
         """The material's inputs besides the strain increment: the coupled field's increment
@@ -854,7 +870,7 @@ class NewtonSolver:
                               f"below dt_min = {opt.dt_min:g} (the steps had already been cut to {dt / ratio:.2g})")
                     break
                 if bar is not None:
-                    bar.set_postfix_str(f"cut-back ({exc.reason}), dt={dt:.3g}")
+                    bar.set_postfix_str(f"cut-back ({exc.brief}), dt={dt:.3g}")
                 continue
             self.points.commit()
             self._committed_tangent = self.points.tangent
